@@ -1,0 +1,45 @@
+"""Every physical constant and tolerance of the project, in one documented place.
+
+All values are SI (metres, kilograms, seconds). Tolerances that must work for a
+matchbox and a wardrobe alike are *relative* to a box size; the absolute floors
+only stop them from collapsing to zero for degenerate input.
+"""
+
+from __future__ import annotations
+
+#: Gravitational acceleration, m/s^2, acting along -z (the world is z up).
+GRAVITY = 9.81
+
+#: Default density of every cuboid, kg/m^3 (the paper's fixed density: water).
+DEFAULT_DENSITY = 1000.0
+
+#: Static friction coefficient (the paper's default).
+DEFAULT_MU = 0.7
+
+#: Number of edges of the inscribed friction pyramid that linearises the Coulomb cone.
+#: Eight edges on the circle |f_t| = mu f_n under-approximate the cone by at most
+#: 1 - cos(pi/8) = 7.6% (a square pyramid over-allows sqrt(2) = 41% on its diagonals).
+FRICTION_PYRAMID_EDGES = 8
+
+#: Stability threshold on the scale-free energy E (see ``pipeline.stability``).
+#: E is a sum over bodies of the squared residual force (in units of the body's weight)
+#: plus the squared residual torque (in units of weight x body size).  1e-5 accepts a
+#: residual of about 0.3 % of a body's weight and rejects a box overhanging its
+#: support by 51 % (E ~ 4e-4); the paper's 1e-3 would accept that box.
+ENERGY_THRESHOLD = 1e-5
+
+#: Contact tolerance as a fraction of the smaller box's smallest edge: two boxes
+#: whose separation along the best separating axis is within +/- this gap touch.
+CONTACT_REL_TOL = 0.02
+
+#: Absolute floor of the contact tolerance, metres.
+CONTACT_ABS_TOL = 1e-6
+
+#: A contact whose normal is within this many sine-units of horizontal
+#: (|n_z| < SIDE_CONTACT_MAX_NZ) and whose interface is an area (>= 3 vertices) is a
+#: *side contact*: it may push (normal force) but carries no friction unless fixed.
+#: See the side-friction trap in ``pipeline.stability``.
+SIDE_CONTACT_MAX_NZ = 0.2588190451025208  # sin(15 degrees)
+
+#: Orthonormality tolerance for rotation matrices read from files.
+ROTATION_TOL = 1e-6
