@@ -1,0 +1,326 @@
+"""Scoring metrics against hand-computed truth and independent geometry (shapely, manifold)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from eval.metrics import (
+    PRF,
+    align_axes,
+    box_iou,
+    compare_graphs,
+    contact_graph,
+    initial_arrangement,
+    match_cuboids,
+    match_supports,
+    pairwise_iou,
+    paper_size_error,
+    relative_size_errors,
+    score_arrangement,
+)
+from pipeline.model import (
+    Arrangement,
+    Contact,
+    ObservedBox,
+    Support,
+    box,
+    ground,
+    rotation_about_axis,
+    rotation_about_z,
+)
+
+
+def _random_rotation(rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
+# ------------------------------------------------------------------ IoU: closed forms
+def test_iou_unit_cubes_offset_half_is_one_third():
+    a = box("a", (0, 0, 0), (1, 1, 1))
+    b = box("b", (0.5, 0, 0), (1, 1, 1))
+    # intersection 0.5, union 1.5
+    assert box_iou(a, b) == pytest.approx(1 / 3, abs=1e-9)
+
+
+def test_iou_cube_and_its_45_degree_turn():
+    a = box("a", (0, 0, 0), (1, 1, 1))
+    b = box("b", (0, 0, 0), (1, 1, 1), yaw=math.pi / 4)
+    # regular octagon of inradius 1/2: area 8 r^2 tan(pi/8) = 2 (sqrt2 - 1); IoU = 1/sqrt2
+    inter = 2 * (math.sqrt(2) - 1)
+    assert box_iou(a, b) == pytest.approx(inter / (2 - inter), abs=1e-9)
+    assert box_iou(a, b) == pytest.approx(1 / math.sqrt(2), abs=1e-9)
+
+
+def test_iou_identical_touching_disjoint_nested():
+    a = box("a", (0.3, -0.2, 1.0), (0.4, 0.5, 0.6), yaw=0.7)
+    assert box_iou(a, a) == pytest.approx(1.0, abs=1e-9)
+    face_touch = box("b", (1.0, 0, 0), (1, 1, 1))
+    unit = box("u", (0, 0, 0), (1, 1, 1))
+    assert box_iou(unit, face_touch) == pytest.approx(0.0, abs=1e-9)
+    assert box_iou(unit, box("c", (3, 0, 0), (1, 1, 1))) == 0.0
+    inner = box("i", (0.1, 0.1, 0.1), (0.2, 0.3, 0.4), yaw=0.3)
+    assert box_iou(unit, inner) == pytest.approx(0.2 * 0.3 * 0.4, rel=1e-9)
+
+
+def test_iou_tilted_cube_corner_through_face():
+    # A cube standing on its corner? Use rotation about x by 45 deg: cross-section in y-z is
+    # the octagon again, extruded along x; a 2-long box along x keeps the same ratio.
+    a = box("a", (0, 0, 0), (2, 1, 1))
+    b = box("b", (0, 0, 0), (2, 1, 1), rotation=rotation_about_axis([1, 0, 0], math.pi / 4))
+    assert box_iou(a, b) == pytest.approx(1 / math.sqrt(2), abs=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.tuples(*[st.floats(-0.6, 0.6)] * 3), st.tuples(*[st.floats(0.1, 1.5)] * 3),
+    st.tuples(*[st.floats(0.1, 1.5)] * 3), st.floats(0, 2 * math.pi), st.floats(0, 2 * math.pi),
+)
+def test_iou_matches_shapely_for_yawed_boxes(offset, size_a, size_b, yaw_a, yaw_b):
+    shapely = pytest.importorskip("shapely")
+    from shapely import affinity
+
+    a = box("a", (0, 0, 0), size_a, yaw=yaw_a)
+    b = box("b", offset, size_b, yaw=yaw_b)
+
+    def footprint(c):
+        sx, sy = c.size[0] / 2, c.size[1] / 2
+        poly = shapely.geometry.box(-sx, -sy, sx, sy)
+        yaw = math.atan2(c.rotation[1, 0], c.rotation[0, 0])
+        poly = affinity.rotate(poly, yaw, origin=(0, 0), use_radians=True)
+        return affinity.translate(poly, c.center[0], c.center[1])
+
+    dz = min(a.center[2] + a.size[2] / 2, b.center[2] + b.size[2] / 2) - max(
+        a.center[2] - a.size[2] / 2, b.center[2] - b.size[2] / 2)
+    inter = footprint(a).intersection(footprint(b)).area * max(dz, 0.0)
+    truth = inter / (a.volume + b.volume - inter)
+    assert box_iou(a, b) == pytest.approx(truth, abs=1e-9)
+    assert box_iou(b, a) == pytest.approx(truth, abs=1e-9)
+
+
+def test_iou_matches_manifold_boolean_for_random_rotations():
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("manifold3d")
+    rng = np.random.default_rng(7)
+    n = 25
+    ca = rng.uniform(-0.3, 0.3, (n, 3))
+    cb = rng.uniform(-0.3, 0.3, (n, 3))
+    sa = rng.uniform(0.2, 1.2, (n, 3))
+    sb = rng.uniform(0.2, 1.2, (n, 3))
+    ra = np.stack([_random_rotation(rng) for _ in range(n)])
+    rb = np.stack([_random_rotation(rng) for _ in range(n)])
+    iou = pairwise_iou(ca, ra, sa, cb, rb, sb)
+    for k in range(n):
+        meshes = []
+        for c, r, s in ((ca[k], ra[k], sa[k]), (cb[k], rb[k], sb[k])):
+            t = np.eye(4)
+            t[:3, :3], t[:3, 3] = r, c
+            meshes.append(trimesh.creation.box(extents=s, transform=t))
+        inter = trimesh.boolean.intersection(meshes, engine="manifold").volume
+        truth = inter / (np.prod(sa[k]) + np.prod(sb[k]) - inter)
+        assert iou[k, k] == pytest.approx(truth, abs=1e-7), k
+
+
+def test_iou_invariant_under_rigid_motion_and_pairwise_consistent():
+    rng = np.random.default_rng(3)
+    c = rng.uniform(-0.4, 0.4, (6, 3))
+    r = np.stack([_random_rotation(rng) for _ in range(6)])
+    s = rng.uniform(0.3, 1.0, (6, 3))
+    iou = pairwise_iou(c, r, s, c, r, s)
+    assert iou.shape == (6, 6)
+    np.testing.assert_allclose(np.diag(iou), 1.0, atol=1e-9)
+    np.testing.assert_allclose(iou, iou.T, atol=1e-9)
+    g = _random_rotation(rng)
+    t = rng.normal(size=3)
+    moved = pairwise_iou(c @ g.T + t, g[None] @ r, s, c @ g.T + t, g[None] @ r, s)
+    np.testing.assert_allclose(moved, iou, atol=1e-9)
+    # a box rotated by 180 degrees about its own axis is the same box
+    flipped = r @ np.diag([-1.0, -1.0, 1.0])
+    np.testing.assert_allclose(np.diag(pairwise_iou(c, r, s, c, flipped, s)), 1.0, atol=1e-9)
+
+
+# ------------------------------------------------------------------ graphs
+def test_three_edge_graph_one_wrong_type_by_hand():
+    gt = [("a", "b", "touch"), ("b", "c", "fixed"), ("a", "ground", "touch")]
+    pred = [("x", "y", "touch"), ("y", "z", "touch"), ("x", "ground", "touch")]
+    mapping = {"x": "a", "y": "b", "z": "c", "ground": "ground"}
+    s = compare_graphs(pred, gt, mapping)
+    # typed: 2 of 3 predicted right, 2 of 3 true found
+    assert (s.typed.tp, s.typed.n_pred, s.typed.n_gt) == (2, 3, 3)
+    assert s.typed.precision == pytest.approx(2 / 3)
+    assert s.typed.recall == pytest.approx(2 / 3)
+    assert s.typed.f1 == pytest.approx(2 / 3)
+    # untyped: every pair right
+    assert (s.untyped.precision, s.untyped.recall, s.untyped.f1) == (1.0, 1.0, 1.0)
+    assert s.false_positives == (("b", "c", "touch"),)
+    assert s.false_negatives == (("b", "c", "fixed"),)
+
+
+def test_graph_extra_edge_unmatched_node_and_order_free():
+    gt = [("a", "b", "touch"), ("b", "c", "fixed"), ("a", "ground", "touch")]
+    # edges given in reversed order; one edge to an unmatched predicted box q
+    pred = [("y", "x", "touch"), ("z", "y", "fixed"), ("q", "x", "touch")]
+    s = compare_graphs(pred, gt, {"x": "a", "y": "b", "z": "c"})
+    # typed: tp 2 of 3 predicted, 2 of 3 true -> P = R = 2/3
+    assert (s.typed.tp, s.typed.n_pred, s.typed.n_gt) == (2, 3, 3)
+    assert ("?q", "a", "touch") in s.false_positives
+    assert s.false_negatives == (("a", "ground", "touch"),)
+    # a fourth predicted edge that is wrong: P = 2/4, R = 2/3, F1 = 2PR/(P+R) = 4/7
+    s4 = compare_graphs(pred + [("x", "z", "touch")], gt, {"x": "a", "y": "b", "z": "c"})
+    assert s4.typed.precision == pytest.approx(0.5)
+    assert s4.typed.recall == pytest.approx(2 / 3)
+    assert s4.typed.f1 == pytest.approx(4 / 7)
+
+
+def test_prf_edge_cases_and_micro_sum():
+    assert PRF(0, 0, 0).f1 == 1.0
+    assert PRF(0, 0, 4).f1 == 0.0 and PRF(0, 3, 0).precision == 0.0
+    total = PRF(2, 3, 4) + PRF(1, 1, 2)
+    assert (total.tp, total.n_pred, total.n_gt) == (3, 4, 6)
+    assert total.f1 == pytest.approx(2 * (3 / 4) * (3 / 6) / (3 / 4 + 3 / 6))
+
+
+# ------------------------------------------------------------------ matching
+def _stack_scene() -> Arrangement:
+    cubes = (box("g0", (0, 0, 0.25), (1.0, 0.8, 0.5), object="o0"),
+             box("g1", (0.1, 0, 0.7), (0.6, 0.6, 0.4), object="o1"),
+             box("g2", (2.0, 0, 0.3), (0.4, 0.4, 0.6), yaw=0.4, object="o2"))
+    return Arrangement(cubes, (ground(),),
+                       (Contact("g0", "ground"), Contact("g1", "g0", "fixed"),
+                        Contact("g2", "ground")))
+
+
+def test_hungarian_matching_recovers_permuted_noisy_boxes():
+    gt = _stack_scene()
+    rng = np.random.default_rng(0)
+    order = [2, 0, 1]
+    preds = tuple(box(f"p{k}", gt.cuboids[i].center + rng.normal(0, 0.01, 3),
+                      gt.cuboids[i].size * 0.95, rotation=gt.cuboids[i].rotation)
+                  for k, i in enumerate(order))
+    m = match_cuboids(Arrangement(preds), gt)
+    assert m.pred_to_gt == {"p0": "g2", "p1": "g0", "p2": "g1"}
+    assert set(m.how) == {"iou"} and np.all(m.iou > 0.7)
+    assert m.unmatched_pred == () and m.unmatched_gt == ()
+
+
+def test_instance_ids_override_overlap():
+    gt = _stack_scene()
+    # p0 sits on g0 but the scan's instance mask says it is g2 (index 3 -> cuboids[2])
+    p0 = box("p0", gt.cuboids[0].center, gt.cuboids[0].size).with_(extra={"instance": 3})
+    p1 = box("p1", gt.cuboids[0].center, gt.cuboids[0].size)
+    m = match_cuboids(Arrangement((p0, p1)), gt)
+    assert m.pred_to_gt == {"p0": "g2", "p1": "g0"}
+    assert dict(zip([p for p, _ in m.pairs], m.how, strict=True)) == {"p0": "instance", "p1": "iou"}
+    assert m.iou[0] == 0.0 and m.iou[1] == pytest.approx(1.0)
+    # far away box: no IoU match
+    far = box("f", (10, 10, 10), (1, 1, 1))
+    assert match_cuboids(Arrangement((far,)), gt).unmatched_pred == ("f",)
+
+
+def test_object_names_restrict_matching():
+    gt = _stack_scene()
+    # straddles g0 (more overlap) and g1; without a name it goes to g0
+    p = box("p", (0.05, 0, 0.45), (0.8, 0.7, 0.5))
+    assert match_cuboids(Arrangement((p,)), gt).pred_to_gt == {"p": "g0"}
+    # it says it belongs to object o1: it may only match g1
+    m = match_cuboids(Arrangement((p.with_(object="o1"),)), gt)
+    assert m.pred_to_gt == {"p": "g1"}
+    # names that are not GT object names are ignored
+    m = match_cuboids(Arrangement((p.with_(object="cluster7"),)), gt)
+    assert m.pred_to_gt == {"p": "g0"}
+
+
+def test_support_matching_by_plane():
+    gt = Arrangement((), (ground(), Support("wall:0", (3, 0, 0), (-1, 0, 0)),
+                          Support("wall:1", (0, 3, 0), (0, -1, 0))))
+    tilt = rotation_about_z(math.radians(5)) @ np.array([0.0, -1.0, 0.0])
+    pred = Arrangement((), (ground(0.01), Support("wall:0", (0.2, 3.05, 0), tilt),
+                            Support("wall:1", (-3, 0, 0), (1, 0, 0))))  # faces the wrong way
+    assert match_supports(pred, gt) == {"ground": "ground", "wall:0": "wall:1"}
+
+
+# ------------------------------------------------------------------ sizes
+def test_paper_size_error_hand_example():
+    gt = np.array([[1.0, 2.0, 4.0], [2.0, 2.0, 2.0]])
+    init = np.array([[0.5, 2.0, 4.0], [2.0, 1.0, 2.0]])
+    opt = np.array([[0.9, 2.0, 4.1], [2.0, 2.4, 2.0]])
+    eye = np.broadcast_to(np.eye(3), (2, 3, 3))
+    e_init = relative_size_errors(init, eye, gt, eye)
+    e_opt = relative_size_errors(opt, eye, gt, eye)
+    np.testing.assert_allclose(e_init, [[0.5, 0, 0], [0, 0.5, 0]])
+    np.testing.assert_allclose(e_opt, [[0.1, 0, 0.025], [0, 0.2, 0]])
+    s = paper_size_error(e_init, e_opt, gt)
+    # changes 0.4 (weight 1) and 0.3 (weight 2) pass eps = 5 %; the 0.025 change does not
+    assert s.n_changed == 2
+    assert s.error == pytest.approx((1 * 0.4 + 2 * 0.3) / 3)
+    assert s.improvement == pytest.approx((1 * 0.4 + 2 * 0.3) / 3)
+    assert s.mean_init == pytest.approx((1 * 0.5 + 2 * 0.5) / 13)  # sum of true sides = 13
+    assert s.mean_opt == pytest.approx((1 * 0.1 + 4 * 0.025 + 2 * 0.2) / 13)
+    assert paper_size_error(e_init, e_init, gt).error == 0.0
+
+
+def test_size_errors_follow_axes_not_order():
+    # predicted box turned 90 degrees about z: its local x is the GT's y, so sizes swap
+    gt_r = np.eye(3)[None]
+    pr = rotation_about_z(math.pi / 2)[None]
+    np.testing.assert_array_equal(align_axes(pr, gt_r), [[1, 0, 2]])
+    e = relative_size_errors(np.array([[2.0, 1.1, 3.0]]), pr, np.array([[1.0, 2.0, 3.0]]), gt_r)
+    np.testing.assert_allclose(e, [[0.1, 0.0, 0.0]], atol=1e-12)
+
+
+# ------------------------------------------------------------------ whole score
+def _prediction(gt: Arrangement) -> Arrangement:
+    """The truth seen partially: each box observed at 60 % of its height, then extended back."""
+    cubes = []
+    for k, c in enumerate(gt.cuboids):
+        obs_size = c.size * np.array([1.0, 1.0, 0.6])
+        obs_center = c.center + np.array([0, 0, 0.2 * c.size[2]])
+        cubes.append(c.with_(id=f"p{k}", object=None, observed=ObservedBox(obs_center, obs_size)))
+    contacts = (Contact("p0", "ground"), Contact("p1", "p0", "touch"), Contact("p2", "ground"))
+    return Arrangement(tuple(cubes), gt.supports, contacts)
+
+
+def test_score_listed_graph_perfect_boxes_one_wrong_type():
+    gt = _stack_scene()
+    s = score_arrangement(_prediction(gt), gt, graph="listed")
+    assert s.matching.pred_to_gt == {"p0": "g0", "p1": "g1", "p2": "g2"}
+    np.testing.assert_allclose(s.iou, 1.0, atol=1e-9)
+    assert s.mean_iou == pytest.approx(1.0)
+    assert s.optimized.typed.f1 == pytest.approx(2 / 3)
+    assert s.optimized.untyped.f1 == 1.0
+    # initial boxes: 60 % of the height inside the truth -> IoU 0.6; size error 0.4 on z sides
+    np.testing.assert_allclose(s.iou_initial, 0.6, atol=1e-9)
+    assert s.size.error == pytest.approx(0.4) and s.size.improvement == pytest.approx(0.4)
+    assert s.size.mean_opt == pytest.approx(0.0, abs=1e-12)
+    js = s.to_json()
+    assert js["optimized"]["typed"]["tp"] == 2 and len(js["cuboids"]) == 3
+
+
+def test_score_truth_against_itself_is_perfect():
+    gt = _stack_scene()
+    s = score_arrangement(gt, gt, graph="listed")
+    assert s.optimized.typed.f1 == 1.0 and s.initial is None and s.size is None
+    assert s.mean_iou == pytest.approx(1.0)
+
+
+def test_initial_graph_from_geometry():
+    pytest.importorskip("pipeline.contacts")
+    gt = _stack_scene()
+    pred = _prediction(gt)
+    init = initial_arrangement(pred)
+    np.testing.assert_allclose(init.sizes[:, 2], gt.sizes[:, 2] * 0.6)
+    s = score_arrangement(pred, gt, graph="union")
+    # observed boxes float above the ground and above g0 top: nothing touches initially
+    assert s.initial.typed.n_pred == 0 and s.initial.typed.recall == 0.0
+    # the truth's geometry adds no pair that is not listed (g1 on g0, g0 and g2 on ground)
+    assert {(a, b) for a, b, _ in contact_graph(gt)} == {(a, b) for a, b, _ in
+                                                         contact_graph(gt, "listed")}
+    assert s.optimized.untyped.f1 == 1.0
