@@ -1,0 +1,129 @@
+"""Camera viewpoints around a scene: sampled in distance, elevation and azimuth, or given.
+
+A viewpoint is a Kinect-like pose: the camera at ``distance`` from the scene centre (the
+centre of the cuboids' bounding box), raised by ``elevation`` above the horizontal,
+looking at the centre with the world's z up.  ``K`` views are spread evenly over the
+azimuth range (a KinectFusion-like sweep) from a random start.  Walls are respected: the
+camera stays in front of every wall (a room is seen from inside), moving closer along
+its ray when needed, and with walls present the default azimuths face the open side.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipeline.camera import Intrinsics, look_at
+from pipeline.errors import InputError
+from pipeline.model import Arrangement, box_corners
+
+#: Keep the camera at least this far in front of any wall, metres.
+WALL_MARGIN = 0.15
+
+
+@dataclass(frozen=True)
+class ViewRanges:
+    """Sampling ranges (closed intervals) of a viewpoint around the scene centre.
+
+    ``azimuth_deg = None`` means the full circle without walls, and +-75 degrees around
+    the open side (the mean wall normal) with walls.  ``fit`` moves the camera back so
+    the scene's bounding sphere fills at most the image (never closer than sampled).
+    """
+
+    distance: tuple[float, float] = (1.5, 3.0)
+    elevation_deg: tuple[float, float] = (20.0, 45.0)
+    azimuth_deg: tuple[float, float] | None = None
+    fit: bool = True
+
+    @classmethod
+    def from_dict(cls, d: dict | None) -> ViewRanges:
+        """Build from ``{"distance": (a, b), "elevation": (a, b), "azimuth": (a, b)}``."""
+        if d is None:
+            return cls()
+        if isinstance(d, ViewRanges):
+            return d
+        known = {"distance", "elevation", "azimuth", "elevation_deg", "azimuth_deg", "fit"}
+        bad = set(d) - known
+        if bad:
+            raise InputError(f"view ranges: unknown keys {sorted(bad)}; expected distance, "
+                             "elevation, azimuth (degrees), fit")
+        out = {}
+        for key, name in (("distance", "distance"), ("elevation", "elevation_deg"),
+                          ("elevation_deg", "elevation_deg"), ("azimuth", "azimuth_deg"),
+                          ("azimuth_deg", "azimuth_deg")):
+            if key in d and d[key] is not None:
+                v = d[key]
+                if np.isscalar(v):
+                    v = (v, v)
+                lo, hi = (float(x) for x in v)
+                if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                    raise InputError(f"view ranges.{key}: need two finite numbers lo <= hi")
+                out[name] = (lo, hi)
+        if "distance" in out and out["distance"][0] <= 0:
+            raise InputError("view ranges.distance: must be positive metres")
+        if "fit" in d:
+            out["fit"] = bool(d["fit"])
+        return cls(**out)
+
+
+def scene_center(arr: Arrangement) -> tuple[np.ndarray, float]:
+    """Centre (3,) and radius of the cuboids' bounding box (origin and 0.5 m if empty)."""
+    if not arr.cuboids:
+        return np.zeros(3), 0.5
+    corners = box_corners(arr.centers, arr.rotations, arr.sizes).reshape(-1, 3)
+    lo, hi = corners.min(axis=0), corners.max(axis=0)
+    return (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
+
+
+def sample_viewpoints(arr: Arrangement, rng: np.random.Generator, views: int = 1,
+                      ranges: ViewRanges | dict | None = None,
+                      intrinsics: Intrinsics | None = None) -> np.ndarray:
+    """Sample ``views`` camera poses around the scene.
+
+    Parameters
+    ----------
+    arr : Arrangement
+    rng : numpy.random.Generator
+    views : int
+    ranges : ViewRanges or dict, optional
+    intrinsics : Intrinsics, optional
+        Used by ``fit`` (default Kinect v1).
+
+    Returns
+    -------
+    poses : (views, 4, 4) float, camera-to-world (OpenCV camera frame)
+    """
+    if views < 1:
+        raise InputError(f"views: must be at least 1, got {views}")
+    r = ViewRanges.from_dict(ranges) if not isinstance(ranges, ViewRanges) else ranges
+    intr = intrinsics or Intrinsics.kinect_v1()
+    center, radius = scene_center(arr)
+    walls = [s for s in arr.supports if s.id != "ground"]
+
+    if r.azimuth_deg is not None:
+        a_lo, a_hi = np.deg2rad(r.azimuth_deg)
+    elif walls:
+        open_dir = np.sum([s.normal[:2] for s in walls], axis=0)
+        mid = np.arctan2(open_dir[1], open_dir[0]) if np.linalg.norm(open_dir) > 1e-9 else 0.0
+        a_lo, a_hi = mid - np.deg2rad(75), mid + np.deg2rad(75)
+    else:
+        a_lo, a_hi = 0.0, 2 * np.pi
+    span = a_hi - a_lo
+    start = rng.uniform(0.0, 1.0)
+    az = a_lo + span * (start + np.arange(views)) / views  # evenly spread, random phase
+    el = np.deg2rad(rng.uniform(*r.elevation_deg, size=views))
+    dist = rng.uniform(*r.distance, size=views)
+    if r.fit:
+        half_fov = np.arctan(min(intr.width / (2 * intr.fx), intr.height / (2 * intr.fy)))
+        dist = np.maximum(dist, 1.1 * radius / np.sin(half_fov))
+
+    dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
+    for s in walls:  # stay in front of each wall: clamp the distance along the ray
+        dn = dirs @ s.normal
+        h = s.signed_distance(center[None])[0] - WALL_MARGIN
+        with np.errstate(divide="ignore"):
+            limit = np.where(dn < 0, h / -dn, np.inf)
+        dist = np.minimum(dist, np.maximum(limit, 0.3))
+    eyes = center + dirs * dist[:, None]
+    return np.stack([look_at(e, center) for e in eyes])
