@@ -1,0 +1,103 @@
+"""``unseen eval SUITE --out DIR``: run an experiment suite (the paper's tables)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import shlex
+import sys
+from pathlib import Path
+
+EPILOG = """\
+Suites live in eval/suites/<suite>.py.  Each writes Markdown and CSV tables and plots
+under --out, one JSON record per scene under --out/tasks (a rerun resumes from them),
+and command.json with the exact command, package versions and seed.
+--workers N runs scenes on N local processes, --dask tcp://HOST:PORT on a running Dask
+cluster; the numbers do not depend on either.  Exit 0, 1 when the suite's answer is
+"no" (the regression suite got worse), 2 on bad input."""
+
+#: Packages whose versions command.json records (distribution names; first one installed wins).
+VERSIONED = {"unseen": ("unseen",), "numpy": ("numpy",), "scipy": ("scipy",),
+             "mujoco": ("mujoco",), "pybullet": ("pybullet",), "open3d": ("open3d", "open3d-cpu"),
+             "trimesh": ("trimesh",), "qpsolvers": ("qpsolvers",), "shapely": ("shapely",),
+             "dask": ("dask",), "distributed": ("distributed",)}
+
+
+def available_suites() -> list[str]:
+    """Names of the suite modules in ``eval/suites`` (without importing them)."""
+    import pkgutil
+
+    import eval.suites
+
+    return sorted(m.name for m in pkgutil.iter_modules(eval.suites.__path__)
+                  if not m.name.startswith("_"))
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    suites = ", ".join(available_suites()) or "(none yet)"
+    parser.add_argument("suite", help=f"one of: {suites}")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--seed", type=int, default=0, help="suite seed (default 0)")
+    parser.add_argument("--n", type=int, default=None,
+                        help="number of scenes/runs (default: the suite's own)")
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
+    group.add_argument("--dask", default=None, metavar="ADDRESS",
+                       help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
+    parser.add_argument("--quick", action="store_true", help="a small, fast version (CI)")
+
+
+def package_versions() -> dict[str, str | None]:
+    """Installed versions of the packages that shape the numbers (None when absent)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out: dict[str, str | None] = {}
+    for name, dists in VERSIONED.items():
+        out[name] = None
+        for dist in dists:
+            try:
+                out[name] = version(dist)
+                break
+            except PackageNotFoundError:
+                continue
+    return out
+
+
+def canonical_command(args: argparse.Namespace) -> list[str]:
+    """The command line that reproduces this run, every option spelled out."""
+    cmd = ["unseen", "eval", args.suite, "--out", str(args.out), "--seed", str(args.seed)]
+    if args.n is not None:
+        cmd += ["--n", str(args.n)]
+    cmd += ["--dask", args.dask] if args.dask else ["--workers", str(args.workers)]
+    if args.quick:
+        cmd.append("--quick")
+    return cmd
+
+
+def run(args: argparse.Namespace) -> int:
+    import importlib
+
+    from pipeline import atomic
+    from pipeline.errors import InputError
+
+    suites = available_suites()
+    if args.suite not in suites:
+        raise InputError(f"unknown suite {args.suite!r}; available: {', '.join(suites) or 'none'}")
+    if args.workers < 1:
+        raise InputError(f"--workers: must be at least 1, got {args.workers}")
+    if args.n is not None and args.n < 1:
+        raise InputError(f"--n: must be at least 1, got {args.n}")
+    if args.seed < 0:
+        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    if args.out.exists() and not args.out.is_dir():
+        raise InputError(f"--out {args.out}: exists and is not a folder")
+    args.out.mkdir(parents=True, exist_ok=True)
+    cmd = canonical_command(args)
+    record = {"command": shlex.join(cmd), "argv": cmd, "suite": args.suite, "seed": args.seed,
+              "n": args.n, "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
+              "versions": package_versions(), "python": sys.version.split()[0],
+              "platform": platform.platform()}
+    atomic.write_text(args.out / "command.json", json.dumps(record, indent=1) + "\n")
+    module = importlib.import_module(f"eval.suites.{args.suite}")
+    return int(module.run(args) or 0)

@@ -1,0 +1,249 @@
+"""Shared helpers for the experiment suites: tasks, scores, aggregation, tables, plots.
+
+A suite is mostly: build :class:`~eval.runner.Task` per scene, run them with
+:func:`run_suite_tasks`, turn each task's :func:`score_record` into rows with
+:func:`aggregate_prf` and :func:`group_records`, and write them with :func:`write_table`
+and :func:`plot_series` / :func:`plot_bars`.  The paper's figures to print next to ours
+are in :data:`PAPER_TABLE1`, :data:`PAPER_TABLE2` and :data:`PAPER_TABLE3`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from pipeline import atomic
+
+#: Table 1 of the paper: (initial P, R, F1, optimized P, R, F1) in percent, and #scenes.
+PAPER_TABLE1: dict[str, dict[str, float]] = {
+    "Synthetic": {"scenes": 12, "init_p": 42.1, "init_r": 26.7, "init_f1": 32.2,
+                  "opt_p": 96.2, "opt_r": 84.7, "opt_f1": 87.2},
+    "NYU2": {"scenes": 700, "init_p": 34.7, "init_r": 47.3, "init_f1": 40.0,
+             "opt_p": 55.3, "opt_r": 70.8, "opt_f1": 60.5},
+    "Recorded": {"scenes": 20, "init_p": 70.1, "init_r": 49.5, "init_f1": 56.5,
+                 "opt_p": 95.7, "opt_r": 96.6, "opt_f1": 95.9},
+    "Kinfu": {"scenes": 2, "init_p": 37.2, "init_r": 28.2, "init_f1": 32.1,
+              "opt_p": 96.4, "opt_r": 84.0, "opt_f1": 89.7},
+}
+
+#: Table 2 of the paper: F1 initial -> optimized per rotation perturbation (degrees).
+PAPER_TABLE2: dict[str, dict[int, tuple[float, float]]] = {
+    "chair_01": {0: (20.0, 100.0), 5: (20.51, 100.0), 10: (20.51, 97.8), 15: (17.14, 87.8)},
+    "chair_02": {0: (21.43, 100.0), 5: (20.69, 100.0), 10: (14.29, 97.5), 15: (14.29, 94.7)},
+}
+
+#: Table 3 of the paper (Fig. 13 is the synthetic 18-box scene; 16 and 14 are recordings).
+PAPER_TABLE3: dict[str, dict[str, float]] = {
+    "Fig. 13": {"proxies": 18, "contacts": 41, "max_valence": 6, "median_valence": 5,
+                "mean_valence": 4.55, "min_valence": 1, "init_p": 85.19, "init_r": 56.10,
+                "opt_p": 90.24, "opt_r": 90.24, "init_f1": 67.65, "opt_f1": 90.24},
+    "Fig. 16": {"proxies": 17, "contacts": 29, "max_valence": 11, "median_valence": 2,
+                "mean_valence": 3.35, "min_valence": 1, "init_p": 58.82, "init_r": 34.48,
+                "opt_p": 100.0, "opt_r": 89.66, "init_f1": 43.48, "opt_f1": 94.55},
+    "Fig. 14": {"proxies": 56, "contacts": 64, "max_valence": 11, "median_valence": 2,
+                "mean_valence": 2.32, "min_valence": 1, "init_p": 15.56, "init_r": 10.77,
+                "opt_p": 98.33, "opt_r": 90.77, "init_f1": 12.73, "opt_f1": 94.40},
+}
+
+
+# ------------------------------------------------------------------------- running
+def run_suite_tasks(args: argparse.Namespace, tasks: Iterable, label: str):
+    """Run a suite's tasks with the scale-out options of ``unseen eval``.
+
+    Returns the :class:`eval.runner.RunSummary`; records are under ``args.out/tasks``.
+    """
+    from eval.runner import run_tasks
+
+    return run_tasks(tasks, args.out, seed=args.seed, workers=getattr(args, "workers", 1),
+                     dask=getattr(args, "dask", None), label=label)
+
+
+def score_record(pred, gt, initial=None, graph: str = "union") -> dict:  # noqa: ANN001
+    """A compact JSON record of :func:`eval.metrics.score_arrangement` for a task result.
+
+    Keeps the edge counts (so scenes can be summed, micro-averaged), mean IoU and the
+    size error; aggregate with :func:`aggregate_prf` on ``"optimized.typed"`` etc.
+    """
+    from eval.metrics import score_arrangement
+
+    s = score_arrangement(pred, gt, initial=initial, graph=graph)
+    rec: dict[str, Any] = {"n_pred": s.n_pred, "n_gt": s.n_gt, "mean_iou": s.mean_iou,
+                           "n_matched": len(s.matching.pairs)}
+    for name, g in (("optimized", s.optimized), ("initial", s.initial)):
+        if g is None:
+            continue
+        rec[name] = {kind: {"tp": p.tp, "n_pred": p.n_pred, "n_gt": p.n_gt}
+                     for kind, p in (("typed", g.typed), ("untyped", g.untyped))}
+    if s.size is not None:
+        rec["size"] = s.size.to_json()
+    return rec
+
+
+def _get(record: Mapping, dotted: str) -> Any:
+    cur: Any = record
+    for part in dotted.split("."):
+        if not isinstance(cur, Mapping) or part not in cur:
+            return None
+        cur = cur[part]
+    return cur
+
+
+def aggregate_prf(records: Iterable[Mapping], key: str = "optimized.typed") -> dict[str, float]:
+    """Precision, recall and F1 over many scenes.
+
+    Parameters
+    ----------
+    records : task results holding ``{"tp", "n_pred", "n_gt"}`` at the dotted ``key``
+        (as :func:`score_record` writes them).  Records without it are skipped.
+
+    Returns
+    -------
+    dict
+        ``precision``, ``recall``, ``f1`` micro-averaged (edge counts summed over scenes,
+        in [0, 1]), ``macro_f1`` (mean of per-scene F1) and ``n`` (scenes counted).
+    """
+    from eval.metrics import PRF
+
+    total = PRF(0, 0, 0)
+    f1s = []
+    for rec in records:
+        c = _get(rec, key)
+        if c is None:
+            continue
+        p = PRF(int(c["tp"]), int(c["n_pred"]), int(c["n_gt"]))
+        total = total + p
+        f1s.append(p.f1)
+    n = len(f1s)
+    return {"precision": total.precision if n else float("nan"),
+            "recall": total.recall if n else float("nan"),
+            "f1": total.f1 if n else float("nan"),
+            "macro_f1": sum(f1s) / n if n else float("nan"), "n": n}
+
+
+def group_records(results: Mapping[str, Mapping], key: Callable[[str, Mapping], Any]
+                  ) -> dict[Any, list[Mapping]]:
+    """Group task results (id -> result) by ``key(task_id, result)``, keys in first-seen order."""
+    groups: dict[Any, list[Mapping]] = {}
+    for tid, rec in results.items():
+        groups.setdefault(key(tid, rec), []).append(rec)
+    return groups
+
+
+def pr_cell(agg: Mapping[str, float]) -> str:
+    """The paper's "P / R" cell in percent: ``96.2 / 84.7``."""
+    return f"{100 * agg['precision']:.1f} / {100 * agg['recall']:.1f}"
+
+
+def pct(x: float, digits: int = 1) -> str:
+    """A fraction as a percentage string (``nan`` stays ``-``)."""
+    return "-" if x != x else f"{100 * x:.{digits}f}"
+
+
+# ------------------------------------------------------------------------- tables
+def _cell(v: Any, floatfmt: str) -> str:
+    if isinstance(v, float):
+        return "-" if v != v else format(v, floatfmt)
+    return "" if v is None else str(v)
+
+
+def markdown_table(columns: Sequence[str], rows: Iterable[Sequence[Any]],
+                   floatfmt: str = ".3g") -> str:
+    """A GitHub Markdown table (floats formatted with ``floatfmt``, NaN as ``-``)."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    for row in rows:
+        cells = [_cell(v, floatfmt).replace("|", "\\|") for v in row]
+        if len(cells) != len(columns):
+            raise ValueError(f"row has {len(cells)} cells, table has {len(columns)} columns")
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def write_table(out: str | Path, name: str, columns: Sequence[str],
+                rows: Sequence[Sequence[Any]], *, title: str = "", note: str = "",
+                floatfmt: str = ".3g") -> str:
+    """Write ``out/<name>.md`` and ``out/<name>.csv`` atomically; return the Markdown.
+
+    The CSV keeps full float precision (``repr``); the Markdown is for reading.
+    """
+    out = Path(out)
+    md = (f"## {title}\n\n" if title else "") + markdown_table(columns, rows, floatfmt)
+    if note:
+        md += f"\n{note}\n"
+    atomic.write_text(out / f"{name}.md", md)
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(columns)
+    writer.writerows([["" if v is None else v for v in row] for row in rows])
+    atomic.write_text(out / f"{name}.csv", buf.getvalue())
+    return md
+
+
+# ------------------------------------------------------------------------- plots
+def _figure(**kwargs: Any):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt, plt.subplots(**kwargs)
+
+
+def _save(fig, path: str | Path) -> None:  # noqa: ANN001
+    import matplotlib.pyplot as plt
+
+    with atomic.atomic_path(path) as tmp:
+        # no Software/date stamp: the same figure gives the same bytes
+        fig.savefig(tmp, dpi=110, metadata={"Software": None})
+    plt.close(fig)
+
+
+def plot_series(path: str | Path, series: Mapping[str, tuple[Sequence[float], Sequence[float]]],
+                *, xlabel: str, ylabel: str, title: str = "", logx: bool = False,
+                logy: bool = False) -> None:
+    """Line plot of ``{label: (xs, ys)}`` written atomically to ``path`` (PNG)."""
+    plt, (fig, ax) = _figure(figsize=(6.4, 4.2))
+    for label, (xs, ys) in series.items():
+        ax.plot(list(xs), list(ys), marker="o", label=label)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    if logx:
+        ax.set_xscale("log")
+    if logy:
+        ax.set_yscale("log")
+    ax.grid(True, alpha=0.3)
+    if series:
+        ax.legend()
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plot_bars(path: str | Path, groups: Mapping[str, Mapping[str, float]], *, ylabel: str,
+              title: str = "", ylim: tuple[float, float] | None = None) -> None:
+    """Grouped bars: ``{category: {series: value}}`` (e.g. family -> initial/optimized F1)."""
+    import numpy as np
+
+    plt, (fig, ax) = _figure(figsize=(max(6.4, 0.9 * len(groups) + 2), 4.2))
+    cats = list(groups)
+    names = list(dict.fromkeys(n for g in groups.values() for n in g))
+    width = 0.8 / max(len(names), 1)
+    x = np.arange(len(cats))
+    for k, name in enumerate(names):
+        vals = [groups[c].get(name, np.nan) for c in cats]
+        ax.bar(x + (k - (len(names) - 1) / 2) * width, vals, width, label=name)
+    ax.set_xticks(x, cats, rotation=30 if len(cats) > 6 else 0)
+    ax.set_ylabel(ylabel)
+    if ylim:
+        ax.set_ylim(*ylim)
+    if title:
+        ax.set_title(title)
+    if names:
+        ax.legend()
+    ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    _save(fig, path)

@@ -1,0 +1,121 @@
+"""``unseen eval``: dispatch to a suite, command.json, bad input; the suites' shared helpers."""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+import types
+
+import numpy as np
+import pytest
+
+from eval.cli import main
+from eval.commands import evaluate
+from eval.runner import Task
+from eval.suites import _common
+
+
+def _noisy_task(rng: np.random.Generator, k: int) -> dict:
+    return {"k": k, "optimized": {"typed": {"tp": k, "n_pred": k + 1, "n_gt": 3}},
+            "u": float(rng.random())}
+
+
+def _fake_suite_run(args) -> int:
+    tasks = [Task(f"s{k}", _noisy_task, {"k": k}) for k in range(args.n or 3)]
+    summary = _common.run_suite_tasks(args, tasks, "fake")
+    agg = _common.aggregate_prf(summary.results.values())
+    _common.write_table(args.out, "table", ["F1", "n"], [[100 * agg["f1"], agg["n"]]],
+                        title="fake")
+    return 0 if not args.quick else 1
+
+
+@pytest.fixture
+def fake_suite(monkeypatch):
+    mod = types.ModuleType("eval.suites.fake")
+    mod.run = _fake_suite_run
+    monkeypatch.setitem(sys.modules, "eval.suites.fake", mod)
+    real = evaluate.available_suites
+    monkeypatch.setattr(evaluate, "available_suites", lambda: sorted([*real(), "fake"]))
+    return mod
+
+
+def test_eval_runs_suite_and_records_command(fake_suite, tmp_path):
+    out = tmp_path / "res"
+    assert main(["eval", "fake", "--out", str(out), "--seed", "4", "--n", "3"]) == 0
+    cmd = json.loads((out / "command.json").read_text())
+    assert cmd["command"] == f"unseen eval fake --out {out} --seed 4 --n 3 --workers 1"
+    assert cmd["seed"] == 4 and cmd["suite"] == "fake"
+    for pkg in ("unseen", "numpy", "mujoco", "pybullet", "open3d"):
+        assert pkg in cmd["versions"]
+    assert cmd["versions"]["numpy"] == np.__version__
+    # micro F1 over tp 0+1+2 = 3, predicted 1+2+3 = 6, true 9: P 1/2, R 1/3 -> F1 0.4
+    assert "| 40 | 3 |" in (out / "table.md").read_text()
+    rows = list(csv.reader((out / "table.csv").open()))
+    assert rows[0] == ["F1", "n"] and float(rows[1][0]) == pytest.approx(40.0)
+    assert sorted(p.name for p in (out / "tasks").iterdir()) == ["s0.json", "s1.json", "s2.json"]
+    # the suite's exit code is the command's
+    assert main(["eval", "fake", "--out", str(out), "--quick"]) == 1
+
+
+def test_eval_unknown_suite_lists_suites(fake_suite, tmp_path, capsys):
+    assert main(["eval", "nosuch", "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "unknown suite 'nosuch'" in err and "fake" in err and "\n" not in err
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize("extra", [["--workers", "0"], ["--n", "0"], ["--seed", "-1"]])
+def test_eval_bad_options_exit_2(fake_suite, tmp_path, capsys, extra):
+    assert main(["eval", "fake", "--out", str(tmp_path / "x"), *extra]) == 2
+    assert capsys.readouterr().err.startswith("unseen eval: error:")
+
+
+def test_workers_and_dask_are_exclusive(tmp_path):
+    with pytest.raises(SystemExit) as exc:
+        main(["eval", "fake", "--out", str(tmp_path), "--workers", "2", "--dask", "tcp://x:1"])
+    assert exc.value.code == 2
+
+
+def test_common_markdown_csv_and_aggregation(tmp_path):
+    md = _common.write_table(tmp_path, "t", ["family", "P / R", "F1"],
+                             [["stack", "96.2 / 84.7", 87.21], ["a|b", None, float("nan")]],
+                             title="Table 1", note="micro-averaged", floatfmt=".1f")
+    assert md.splitlines()[:4] == ["## Table 1", "", "| family | P / R | F1 |", "|---|---|---|"]
+    assert "| stack | 96.2 / 84.7 | 87.2 |" in md and "| a\\|b |  | - |" in md
+    assert (tmp_path / "t.md").read_text() == md
+    rows = list(csv.reader((tmp_path / "t.csv").open()))
+    assert rows[1] == ["stack", "96.2 / 84.7", "87.21"] and rows[2][0] == "a|b"
+    with pytest.raises(ValueError, match="columns"):
+        _common.markdown_table(["a"], [[1, 2]])
+    recs = [{"optimized": {"typed": {"tp": 2, "n_pred": 2, "n_gt": 4}}},
+            {"optimized": {"typed": {"tp": 1, "n_pred": 3, "n_gt": 1}}}, {"failed": True}]
+    agg = _common.aggregate_prf(recs)
+    # micro: tp 3, pred 5, true 5 -> 0.6; macro: F1 2/3 and 0.5
+    assert agg["n"] == 2 and agg["f1"] == pytest.approx(0.6)
+    assert agg["macro_f1"] == pytest.approx((2 / 3 + 0.5) / 2)
+    assert _common.pr_cell(agg) == "60.0 / 60.0"
+    groups = _common.group_records({"stack-0": {"a": 1}, "table-0": {"a": 2}, "stack-1": {"a": 3}},
+                                   lambda tid, r: tid.split("-")[0])
+    assert list(groups) == ["stack", "table"] and len(groups["stack"]) == 2
+
+
+def test_common_score_record_and_plots(tmp_path):
+    from pipeline.model import Arrangement, Contact, box, ground
+
+    gt = Arrangement((box("a", (0, 0, 0.5), (1, 1, 1)), box("b", (0, 0, 1.5), (1, 1, 1))),
+                     (ground(),), (Contact("a", "ground"), Contact("a", "b", "fixed")))
+    pred = gt.with_(contacts=(Contact("a", "ground"), Contact("a", "b")))
+    rec = _common.score_record(pred, gt, graph="listed")
+    assert rec["optimized"]["typed"] == {"tp": 1, "n_pred": 2, "n_gt": 2}
+    assert rec["optimized"]["untyped"] == {"tp": 2, "n_pred": 2, "n_gt": 2}
+    json.dumps(rec)
+    _common.plot_series(tmp_path / "p.png", {"ours": ([1, 2, 4], [0.1, 0.2, 0.5])},
+                        xlabel="boxes", ylabel="s", logy=True)
+    _common.plot_bars(tmp_path / "b.png", {"stack": {"initial": 30, "optimized": 95}},
+                      ylabel="F1")
+    first = (tmp_path / "p.png").read_bytes()
+    assert first[:8] == b"\x89PNG\r\n\x1a\n" and (tmp_path / "b.png").stat().st_size > 1000
+    _common.plot_series(tmp_path / "p.png", {"ours": ([1, 2, 4], [0.1, 0.2, 0.5])},
+                        xlabel="boxes", ylabel="s", logy=True)
+    assert (tmp_path / "p.png").read_bytes() == first
