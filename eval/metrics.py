@@ -236,8 +236,9 @@ def match_cuboids(pred: Arrangement, gt: Arrangement, *, min_iou: float = MIN_MA
     A predicted cuboid with an instance id (``extra["instance"]``) may only match that
     ground-truth cuboid, whatever the overlap; if several claim the same one, the one
     with the highest IoU wins.  When every predicted ``object`` name is a ground-truth
-    object name, a cuboid may only match cuboids of its object.  Everything else matches
-    by IoU (at least ``min_iou``) with the Hungarian assignment maximising total IoU.
+    object name (the pipeline names objects after the scan's instance mask), a cuboid
+    may only match an overlapping cuboid of its object (any IoU > 0).  Everything else
+    matches by IoU (at least ``min_iou``).  The Hungarian assignment maximises total IoU.
 
     Returns
     -------
@@ -255,8 +256,8 @@ def match_cuboids(pred: Arrangement, gt: Arrangement, *, min_iou: float = MIN_MA
     gt_objects = np.array([c.object for c in gt.cuboids], dtype=object)
     if pred_objects and pred_objects <= set(gt_objects.tolist()):
         for i, c in enumerate(pred.cuboids):
-            if c.object is not None:
-                allowed[i] &= gt_objects == c.object
+            if c.object is not None:  # within its object any overlap will do
+                allowed[i] = (gt_objects == c.object) & (iou[i] > 0.0)
     if use_instances:
         for i, c in enumerate(pred.cuboids):
             col = _instance_column(c, gt)

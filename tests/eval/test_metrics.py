@@ -236,6 +236,30 @@ def test_object_names_restrict_matching():
     # names that are not GT object names are ignored
     m = match_cuboids(Arrangement((p.with_(object="cluster7"),)), gt)
     assert m.pred_to_gt == {"p": "g0"}
+    # within its object a small overlap is enough (a barely seen part)
+    sliver = box("s", (0.1, 0.33, 0.93), (0.6, 0.2, 0.2), object="o1")  # IoU 0.018
+    assert box_iou(sliver, gt.cuboids[1]) < 0.05
+    assert match_cuboids(Arrangement((sliver,)), gt).pred_to_gt == {"s": "g1"}
+    assert match_cuboids(Arrangement((sliver.with_(object=None),)), gt).pred_to_gt == {}
+
+
+@pytest.mark.parametrize("family", ["table", "shelf", "sofa", "room"])
+def test_matching_recovers_perturbed_synthetic_scenes(family):
+    from synth_scenes.registry import make
+
+    rng = np.random.default_rng(1)
+    for seed in range(2):
+        gt = make(family, np.random.default_rng(seed))
+        perm = rng.permutation(len(gt.cuboids))
+        cubes = []
+        for k, i in enumerate(perm):
+            c = gt.cuboids[i]
+            turn = rotation_about_axis(rng.normal(size=3), math.radians(rng.uniform(-3, 3)))
+            cubes.append(c.with_(id=f"p{k}", object=None, rotation=turn @ c.rotation,
+                                 center=c.center + rng.normal(0, 0.01, 3) * c.size,
+                                 size=c.size * rng.uniform(0.95, 1.05, 3)))
+        m = match_cuboids(Arrangement(tuple(cubes)), gt)
+        assert m.pred_to_gt == {f"p{k}": gt.cuboids[i].id for k, i in enumerate(perm)}
 
 
 def test_support_matching_by_plane():
