@@ -150,6 +150,17 @@ def surface_items(rng: np.random.Generator, n: int, kinds=("box", "book", "books
     return out
 
 
+def lean_angle(rng: np.random.Generator, t: float, h: float, lo_deg: float,
+               hi_deg: float) -> float:
+    """A lean from vertical (radians) far enough past ``atan(t / h)`` to rest on its support.
+
+    A box of thickness ``t`` and height ``h`` leaning at ``theta`` has its centre of mass
+    on the wall side of its bottom pivot edge only when ``tan(theta) > t / h``; below
+    that it would stand back up.  We ask for ``tan(theta) >= 2 t / h``.
+    """
+    return max(np.radians(_u(rng, lo_deg, hi_deg)), float(np.arctan(2 * t / h)))
+
+
 def lean_box(size, toward: int, theta: float, base_z: float, stop: float,
              other: float) -> tuple[np.ndarray, np.ndarray]:
     """Pose of a box leaning at ``theta`` from vertical toward ``-axis[toward]``.
@@ -449,11 +460,13 @@ def _book_row(rng: np.random.Generator, g: Group, board: int, x0: float, x1: flo
             g.touch(k, last)
         x, last, last_h = x + t, k, h
     if last is not None and rng.random() < 0.6:
-        theta = np.radians(_u(rng, 10, 25))
         t, w = _u(rng, 0.015, 0.04), _u(rng, 0.6, 0.9) * depth
-        h = min(_u(rng, 0.15, 0.3), 0.9 * last_h / np.cos(theta) if np.isfinite(last_h)
-                else np.inf, (clear - 0.03 - t * np.sin(theta)) / np.cos(theta))
-        if h >= 0.1 and x + h * np.sin(theta) + t < x1 - 0.05:
+        h = _u(rng, 0.15, 0.3)
+        theta = lean_angle(rng, t, h, 10, 25)
+        h = min(h, 0.9 * last_h / np.cos(theta) if np.isfinite(last_h) else np.inf,
+                (clear - 0.03 - t * np.sin(theta)) / np.cos(theta))
+        if (h >= 0.1 and np.tan(theta) >= 1.8 * t / h
+                and x + h * np.sin(theta) + t < x1 - 0.05):
             c, R = lean_box((t, w, h), 0, theta, z, x, _u(rng, -0.2, 0.2) * (depth - w))
             k = g.add(c, (t, w, h), g.new_label("book"), R)
             g.touch(k, board)
@@ -511,23 +524,25 @@ def wall_shelf(rng: np.random.Generator) -> Group:
     g = Group()
     for i in range(n):
         zb = z0 + i * gap
-        board = g.add((0, D / 2, zb + t / 2), (W, D, t), "wall_shelf")
+        label = g.new_label("wall_shelf")          # each board (and its brackets): one object
+        board = g.add((0, D / 2, zb + t / 2), (W, D, t), label)
         g.fix(board, "wall")
         if brackets:
             bh = min(0.12, gap - 0.1)
             for sx in (-1, 1):
                 k = g.add((sx * (W / 2 - 0.06), 0.3 * D, zb - bh / 2), (0.025, 0.6 * D, bh),
-                          "wall_shelf")
+                          label)
                 g.fix(k, "wall")
                 g.fix(k, board)
         x_free = -W / 2
         # headroom under the next board (and its brackets)
         clear = (gap - t - (min(0.12, gap - 0.1) if brackets else 0.0)) if i < n - 1 else 0.6
         if rng.random() < 0.5:
-            theta = np.radians(_u(rng, 8, 22))
             w, bt = _u(rng, 0.12, 0.2), _u(rng, 0.015, 0.035)
-            h = min(_u(rng, 0.18, 0.28), (clear - 0.04) / np.cos(theta) - bt)
-            if h * np.sin(theta) + bt < D - 0.04:
+            h = _u(rng, 0.18, 0.28)
+            theta = lean_angle(rng, bt, h, 8, 22)
+            h = min(h, (clear - 0.04) / np.cos(theta) - bt)
+            if np.tan(theta) >= 1.8 * bt / h and h * np.sin(theta) + bt < D - 0.04:
                 c, R = lean_box((w, bt, h), 1, theta, zb + t, 0.0, -W / 2 + 0.03 + w / 2)
                 k = g.add(c, (w, bt, h), g.new_label("book"), R)
                 g.touch(k, board)
@@ -618,12 +633,13 @@ def sofa(rng: np.random.Generator) -> Group:
             g.touch(k, cushions[-1])
         cushions.append(k)
     if rng.random() < 0.6:
-        theta = np.radians(_u(rng, 10, 20))
-        bt = _u(rng, 0.1, 0.16)
+        bt, bch = _u(rng, 0.06, 0.1), _u(rng, 0.35, 0.45)
+        theta = lean_angle(rng, bt, bch, 12, 25)
         # its top must stay below the top of the back
-        bch = min(_u(rng, 0.35, 0.45), (bh - 0.04 - h - ch - bt * np.sin(theta)) / np.cos(theta))
+        bch = min(bch, (bh - 0.04 - h - ch - bt * np.sin(theta)) / np.cos(theta))
         bw = cw - 2 * CLEARANCE
-        for i in range(n if bch >= 0.2 else 0):
+        ok = bch >= 0.2 and np.tan(theta) >= 1.8 * bt / bch and theta < np.radians(40)
+        for i in range(n if ok else 0):
             x = -W / 2 + cw * (i + 0.5)
             # lean toward +y (the back): mirror of lean_box's -y convention
             c, R = lean_box((bw, bt, bch), 1, theta, h + ch, -D / 2, x)

@@ -26,7 +26,7 @@ FAMILIES: dict[str, tuple[Callable[..., Arrangement], tuple[str, ...]]] = {
     "wall_shelf": (f.make_wall_shelf, ()),
     "desk": (f.make_desk, ()),
     "sofa": (f.make_sofa, ()),
-    "room": (f.make_room, ("n_objects",)),
+    "room": (f.make_room, ("n_objects", "min_cuboids", "max_cuboids")),
 }
 
 

@@ -1,0 +1,238 @@
+"""Scene families: geometry, typed contacts, object maps, determinism, and that they stand.
+
+Oracles independent of the construction: the contact finder of ``pipeline.contacts``
+(listed pairs == touching pairs, no interpenetration), closed-form statics of the
+counterweight, the analytic stability checker and the MuJoCo/PyBullet engines.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.arrangement_io import arrangement_from_dict, dumps
+from pipeline.contacts import find_contacts
+from pipeline.errors import InputError
+from pipeline.model import box_corners, is_support_id
+from synth_scenes.registry import FAMILIES, family_names, make
+
+FAMILY_SEEDS = [(name, seed) for name in FAMILIES for seed in range(6)]
+FURNITURE = {"table", "chair", "shelf", "wall_shelf", "desk", "sofa", "monitor"}
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    return {(n, s): make(n, np.random.default_rng(s)) for n, s in FAMILY_SEEDS}
+
+
+@pytest.mark.parametrize(("name", "seed"), FAMILY_SEEDS)
+def test_listed_contacts_are_exactly_the_touching_pairs(scenes, name, seed):
+    arr = scenes[(name, seed)]
+    cs = find_contacts(arr)
+    assert cs.penetrations == ()
+    found = {tuple(sorted(p)) for p in cs.pairs}
+    listed = {c.key for c in arr.contacts}
+    assert found == listed
+    # every cuboid rests on something
+    touched = {x for key in listed for x in key}
+    assert set(arr.ids) <= touched
+
+
+@pytest.mark.parametrize(("name", "seed"), FAMILY_SEEDS)
+def test_ids_objects_supports_and_types(scenes, name, seed):
+    arr = scenes[(name, seed)]
+    K = len(arr.cuboids)
+    assert arr.ids == tuple(f"b{k}" for k in range(K))
+    assert arr.meta["family"] == name
+    assert all(c.object for c in arr.cuboids)
+    assert "ground" in arr.support_ids
+    for s in arr.supports:
+        if s.id != "ground":
+            assert s.id.startswith("wall:") and abs(s.normal[2]) < 1e-12
+        # every corner of every cuboid is on the free side of every support
+        corners = box_corners(arr.centers, arr.rotations, arr.sizes).reshape(-1, 3)
+        assert s.signed_distance(corners).min() > -1e-9
+    assert np.all(arr.sizes > 0.009) and np.all(arr.sizes < 2.6)
+    obj = {c.id: c.object for c in arr.cuboids}
+    for c in arr.contacts:
+        if is_support_id(c.b) or is_support_id(c.a):
+            cub, sup = (c.a, c.b) if is_support_id(c.b) else (c.b, c.a)
+            want = "fixed" if sup.startswith("wall:") and obj[cub].startswith("wall_shelf") \
+                else "touch"
+        else:
+            want = "fixed" if obj[c.a] == obj[c.b] else "touch"
+        assert c.type == want, (c, obj.get(c.a), obj.get(c.b))
+
+
+@pytest.mark.parametrize(("name", "seed"), FAMILY_SEEDS)
+def test_objects_are_fused_and_connected(scenes, name, seed):
+    """The cuboids of one object form one connected graph of fixed contacts."""
+    arr = scenes[(name, seed)]
+    members: dict[str, list[str]] = {}
+    for c in arr.cuboids:
+        members.setdefault(c.object, []).append(c.id)
+    parent = {i: i for i in arr.ids}
+
+    def find(x):
+        while parent[x] != x:
+            x = parent[x]
+        return x
+
+    for a, b in arr.fixed_pairs():
+        if a in parent and b in parent:
+            parent[find(a)] = find(b)
+    for objname, ids in members.items():
+        assert len({find(i) for i in ids}) == 1, objname
+        if len(ids) > 1:
+            assert objname.rstrip("0123456789") in FURNITURE
+
+
+def test_round_trip_and_determinism():
+    for name in FAMILIES:
+        a = make(name, np.random.default_rng(7))
+        b = make(name, np.random.default_rng(7))
+        c = make(name, np.random.default_rng(8))
+        assert dumps(a) == dumps(b)
+        assert dumps(a) != dumps(c)
+        import json
+
+        assert dumps(arrangement_from_dict(json.loads(dumps(a)))) == dumps(a)
+
+
+@pytest.mark.parametrize("variant", ["column", "staggered", "pyramid", "piles"])
+@pytest.mark.parametrize("n", [1, 3, 6])
+def test_stack_has_n_boxes(variant, n):
+    arr = make("stack", np.random.default_rng(n), n_boxes=n, variant=variant)
+    assert len(arr.cuboids) == n
+    assert arr.meta["variant"] == variant
+    assert {c.key for c in arr.contacts} == {tuple(sorted(p)) for p in find_contacts(arr).pairs}
+
+
+def test_large_stacks_are_pyramids_or_piles():
+    for seed in range(4):
+        arr = make("stack", np.random.default_rng(seed), n_boxes=18)
+        assert len(arr.cuboids) == 18 and arr.meta["variant"] in ("pyramid", "piles")
+
+
+def test_pyramid_rows_bridge_gaps():
+    """6 boxes -> rows 3, 2, 1; each upper box touches exactly the two below it."""
+    arr = make("stack", np.random.default_rng(0), n_boxes=6, variant="pyramid")
+    z = np.round(arr.centers[:, 2], 9)
+    rows = [np.flatnonzero(z == v) for v in np.unique(z)]
+    assert [len(r) for r in rows] == [3, 2, 1]
+    below = {i: [c for c in arr.contacts if c.a == f"b{i}" or c.b == f"b{i}"] for i in range(6)}
+    for r in rows[1:]:
+        for i in r:
+            lower = [c.b if c.a == f"b{i}" else c.a for c in below[i]]
+            lower = [x for x in lower if arr.index[x] < i]
+            assert len(lower) == 2
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_counterweight_stands_only_as_a_whole(seed):
+    """Closed form: the plank alone has its centre beyond the block edge; with the
+    weight (and tip load) the centre of mass is inside the block's top.  The analytic
+    checker agrees both ways."""
+    from pipeline.stability import check_stability
+
+    arr = make("counterweight", np.random.default_rng(seed))
+    obj = {c.object.rstrip("0123456789"): c for c in arr.cuboids}
+    block, plank = obj["block"], obj["plank"]
+    R = block.rotation
+    local = (arr.centers - block.center) @ R            # coordinates in the block frame
+    half = block.size / 2
+    p = arr.index[plank.id]
+    assert abs(local[p, 0]) > half[0] + 0.05             # plank alone tips
+    above = [k for k in range(len(arr.cuboids)) if k != arr.index[block.id]]
+    m = arr.masses[above]
+    com = (m[:, None] * local[above]).sum(axis=0) / m.sum()
+    assert abs(com[0]) < half[0] / 2 + 1e-9 and abs(com[1]) < half[1]
+    assert check_stability(arr).stable
+    without = arr.with_(cuboids=(block, plank),
+                        contacts=tuple(c for c in arr.contacts
+                                       if {c.a, c.b} <= {block.id, plank.id, "ground"}))
+    assert not check_stability(without).stable
+
+
+def test_room_size_walls_and_objects():
+    for seed in range(4):
+        arr = make("room", np.random.default_rng(seed))
+        assert 20 <= len(arr.cuboids) <= 60
+        assert arr.support_ids == ("ground", "wall:0", "wall:1")
+        assert len({c.object for c in arr.cuboids}) >= 4
+    arr = make("room", np.random.default_rng(1), n_objects=3)
+    assert arr.meta["n_objects"] == 3
+    assert len({c.object for c in arr.cuboids}) >= 3
+
+
+def test_wall_shelf_hangs_on_the_wall():
+    for seed in range(6):
+        arr = make("wall_shelf", np.random.default_rng(seed))
+        fixed_to_wall = {c.a if c.b == "wall:0" else c.b for c in arr.contacts
+                         if "wall:0" in (c.a, c.b) and c.type == "fixed"}
+        assert fixed_to_wall, "boards are fused to the wall"
+        boards = [arr.cuboid(i) for i in fixed_to_wall]
+        # hanging: no part of the shelf touches the ground
+        assert not any(c.type and "ground" in (c.a, c.b) for c in arr.contacts)
+        assert min(b.center[2] for b in boards) > 0.7
+
+
+def test_registry_errors():
+    assert family_names()[0] == "stack" and "room" in family_names()
+    with pytest.raises(InputError, match="unknown scene family"):
+        make("castle", np.random.default_rng(0))
+    with pytest.raises(InputError, match="--n-boxes: not an option of family 'table'"):
+        make("table", np.random.default_rng(0), n_boxes=3)
+    with pytest.raises(InputError, match="n_boxes"):
+        make("stack", np.random.default_rng(0), n_boxes=0)
+
+
+@pytest.mark.parametrize("name", list(FAMILIES))
+def test_every_family_gives_a_scene_that_stands(name):
+    """Sampling with rejection (analytic + MuJoCo) succeeds quickly for every family."""
+    pytest.importorskip("mujoco")
+    from synth_scenes.truth import sample_scene, scene_rngs
+
+    rng, _ = scene_rngs(0)
+    gt = sample_scene(name, rng, seed=0, **({"n_objects": 4} if name == "room" else {}))
+    assert gt.status == "ok"
+    assert gt.attempts <= 3
+    v = gt.validation
+    assert v.stable and v.contacts_ok and v.analytic and v.engines == {"mujoco": True}
+    assert gt.arrangement.meta["validation"]["stable"] is True
+
+
+def test_rejection_sampling_rejects(monkeypatch):
+    """A scene that does not stand is redrawn; a family that never stands gives up."""
+    import synth_scenes.truth as truth
+
+    calls = []
+
+    def fake_validate(arr, engines=(), analytic=True, mu=0.7):
+        calls.append(arr)
+        ok = len(calls) == 3
+        return truth.Validation(ok, True, ok, {"mujoco": ok})
+
+    monkeypatch.setattr(truth, "validate", fake_validate)
+    gt = truth.sample_scene("chair", np.random.default_rng(0))
+    assert gt.status == "ok" and gt.attempts == 3 and len(gt.rejected) == 2
+    assert dumps(gt.arrangement.with_(meta={})) == dumps(calls[2].with_(meta={}))
+    calls.clear()
+    monkeypatch.setattr(truth, "validate",
+                        lambda arr, *a, **k: truth.Validation(False, True, False, {}))
+    gt = truth.sample_scene("chair", np.random.default_rng(0), max_attempts=4)
+    assert gt.status == "gave_up" and gt.attempts == 4
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", list(FAMILIES))
+def test_validity_table_seeds_0_19(name):
+    """The README table: every family, seeds 0-19, stands in MuJoCo and PyBullet and the
+    analytic checker calls it stable."""
+    from synth_scenes.truth import validate_family, validity_table
+
+    rows = validate_family(name, range(20))
+    print(validity_table(rows))
+    bad = [r for r in rows if not (r["contacts_ok"] and r["analytic"] and r["mujoco"]
+                                   and r["pybullet"])]
+    assert not bad, bad
