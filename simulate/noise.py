@@ -140,52 +140,56 @@ def _shift(a: np.ndarray, dv: int, du: int, fill: float) -> np.ndarray:
     return out
 
 
-def point_map(depth: np.ndarray, intr: Intrinsics) -> np.ndarray:
-    """(H, W, 3) camera-frame points of every pixel (NaN where depth is 0)."""
-    H, W = depth.shape
-    v, u = np.mgrid[0:H, 0:W]
-    z = np.where(depth > 0, depth.astype(float), np.nan)
-    return np.stack([(u - intr.cx) * z / intr.fx, (v - intr.cy) * z / intr.fy, z], axis=-1)
+def _one_sided_gradient(z: np.ndarray, axis: int, edge_jump: float) -> np.ndarray:
+    """Derivative of ``z`` along ``axis`` (per pixel): the forward or backward difference,
+    whichever is smaller in magnitude; NaN where both cross a jump > ``edge_jump * z`` or
+    reach an invalid pixel."""
+    inf = np.float32(np.inf)
+    zz = np.where(z > 0, z, np.nan).astype(np.float32)
+    diff = np.diff(zz, axis=axis)
+    pad = [(0, 0), (0, 0)]
+    pad[axis] = (0, 1)
+    fwd = np.pad(diff, pad, constant_values=np.nan)
+    pad[axis] = (1, 0)
+    bwd = np.pad(diff, pad, constant_values=np.nan)
+    af = np.where(np.isnan(fwd), inf, np.abs(fwd))
+    ab = np.where(np.isnan(bwd), inf, np.abs(bwd))
+    g = np.where(af <= ab, fwd, bwd)
+    g[np.minimum(af, ab) > edge_jump * zz] = np.nan
+    return g
 
 
 def incidence_angle(depth: np.ndarray, intr: Intrinsics, edge_jump: float = 0.03
                     ) -> tuple[np.ndarray, np.ndarray]:
     """Surface normals and incidence angles from a depth image.
 
-    Along each image axis the tangent is the forward or backward difference, whichever
-    has the smaller depth change (so tangents do not cross depth edges); differences
-    across a jump larger than ``edge_jump * z`` are discarded.
+    For a pinhole camera, ``P(u, v) = z(u, v) r(u, v)`` with the ray
+    ``r = ((u - cx) / fx, (v - cy) / fy, 1)``, and ``dP/du x dP/dv`` is parallel to
+    ``m = (-fx z_u, -fy z_v, z + fx z_u r_x + fy z_v r_y)`` with ``m . r = z``, so
+    ``cos(theta) = z / (|m| |r|)``.  Along each image axis the derivative is the forward or
+    backward difference, whichever changes less (so it does not cross depth edges);
+    where both jump by more than ``edge_jump * z`` the normal is unknown.
 
     Returns
     -------
-    normals : (H, W, 3) float, unit, camera frame, facing the camera (NaN: unknown)
-    theta : (H, W) float, radians between normal and viewing ray (NaN: unknown)
+    normals : (H, W, 3) float32, unit, camera frame, facing the camera (NaN: unknown)
+    theta : (H, W) float32, radians between normal and viewing ray (NaN: unknown)
     """
-    P = point_map(depth, intr)
-    z = P[..., 2]
-
-    def tangent(axis_du: int, axis_dv: int) -> np.ndarray:
-        fwd = _shift(P, axis_dv, axis_du, np.nan) - P
-        bwd = P - _shift(P, -axis_dv, -axis_du, np.nan)
-        jf = np.abs(fwd[..., 2])
-        jb = np.abs(bwd[..., 2])
-        jf = np.where(np.isnan(jf), np.inf, jf)
-        jb = np.where(np.isnan(jb), np.inf, jb)
-        t = np.where((jf <= jb)[..., None], fwd, bwd)
-        bad = np.minimum(jf, jb) > edge_jump * np.nan_to_num(z, nan=0.0)
-        t[bad] = np.nan
-        return t
-
-    tu = tangent(1, 0)
-    tv = tangent(0, 1)
-    n = np.cross(tu, tv)
+    z = np.asarray(depth, dtype=np.float32)
+    H, W = z.shape
+    rx = ((np.arange(W, dtype=np.float32) - np.float32(intr.cx)) / np.float32(intr.fx))[None, :]
+    ry = ((np.arange(H, dtype=np.float32) - np.float32(intr.cy)) / np.float32(intr.fy))[:, None]
+    gu = _one_sided_gradient(z, 1, edge_jump) * np.float32(intr.fx)
+    gv = _one_sided_gradient(z, 0, edge_jump) * np.float32(intr.fy)
+    mz = z + gu * rx + gv * ry
+    norm_m = np.sqrt(gu * gu + gv * gv + mz * mz)
+    norm_r = np.sqrt(rx * rx + ry * ry + 1)
     with np.errstate(invalid="ignore", divide="ignore"):
-        n /= np.linalg.norm(n, axis=-1, keepdims=True)
-        ray = P / np.linalg.norm(P, axis=-1, keepdims=True)
-        c = np.sum(n * ray, axis=-1)
-    n = np.where((c > 0)[..., None], -n, n)  # face the camera
-    theta = np.arccos(np.clip(np.abs(c), 0.0, 1.0))
-    return n, theta
+        cos = z / (norm_m * norm_r)
+        normals = np.stack([gu, gv, -mz], axis=-1) / norm_m[..., None]  # -m: toward camera
+    theta = np.arccos(np.clip(cos, 0.0, 1.0))
+    theta[~np.isfinite(cos) | (z <= 0)] = np.nan
+    return normals, theta
 
 
 def projector_shadow(depth: np.ndarray, intr: Intrinsics, baseline: float = 0.075,

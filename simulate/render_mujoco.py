@@ -1,8 +1,9 @@
 """Offscreen MuJoCo renderer: RGB, exact metric depth and per-pixel instance ids.
 
-The arrangement becomes a render-only MJCF (visual box geoms, no physics): one box per
-cuboid with its own colour, and each support plane (ground, walls) as a large thin grey
-box whose free face lies on the plane.  The OpenCV intrinsics are imposed exactly by
+The arrangement is drawn as boxes (no physics): one per cuboid with its own colour, and
+each support plane (ground, walls) as a large thin grey slab whose free face lies on the
+plane.  They are the geoms of a render-only MJCF with a pool of box geoms that is
+re-dressed per arrangement, so one GL context serves every scene of a process.  The OpenCV intrinsics are imposed exactly by
 writing the OpenGL frustum of MuJoCo's scene camera after ``mjv_updateScene`` (so any
 ``fx, fy, cx, cy`` works, not only MuJoCo's symmetric ``fovy`` camera).
 
@@ -11,15 +12,14 @@ depth buffer (float32) in float64: exact to about a micrometre at a few metres.
 Instance ids come from MuJoCo's segmentation pass: geom id -> cuboid index + 1, supports
 and background 0.
 
-Headless: ``MUJOCO_GL=egl`` (the default set here when unset), falling back to
-``osmesa`` when EGL cannot create a context.
+Headless: ``MUJOCO_GL=egl`` (the default set here when unset), ``osmesa`` when no EGL
+library is found (or when the caller sets it).
 """
 
 from __future__ import annotations
 
 import colorsys
 import os
-from collections.abc import Sequence
 
 import numpy as np
 
@@ -39,6 +39,9 @@ GROUND_RGB = (0.55, 0.55, 0.53)
 WALL_RGB = (0.78, 0.77, 0.74)
 
 _MJOBJ_GEOM = 5  # mujoco.mjtObj.mjOBJ_GEOM
+
+#: Geom group of the pool's unused geoms (switched off in the scene options).
+HIDDEN_GROUP = 3
 
 
 def cuboid_colors(arr: Arrangement) -> np.ndarray:
@@ -67,13 +70,13 @@ def cuboid_colors(arr: Arrangement) -> np.ndarray:
     return out
 
 
-def _quat_wxyz_from_matrix(R: np.ndarray) -> np.ndarray:
-    """(4,) unit quaternion w x y z of a rotation matrix (MuJoCo's convention)."""
-    import mujoco
+def _quats_wxyz(R: np.ndarray) -> np.ndarray:
+    """(n, 4) unit quaternions w x y z of rotations ``R (n, 3, 3)`` (MuJoCo's convention)."""
+    from scipy.spatial.transform import Rotation
 
-    q = np.zeros(4)
-    mujoco.mju_mat2Quat(q, np.ascontiguousarray(R, dtype=float).ravel())
-    return q
+    if len(R) == 0:
+        return np.zeros((0, 4))
+    return Rotation.from_matrix(np.asarray(R, float)).as_quat(scalar_first=True)
 
 
 def _support_frame(point: np.ndarray, normal: np.ndarray, anchor: np.ndarray
@@ -92,46 +95,37 @@ def _support_frame(point: np.ndarray, normal: np.ndarray, anchor: np.ndarray
     return foot - n * SUPPORT_THICKNESS / 2, np.stack([x, y, n], axis=1)
 
 
-def scene_mjcf(arr: Arrangement, width: int = 640, height: int = 480,
-               colors: np.ndarray | None = None) -> tuple[str, np.ndarray]:
-    """A render-only MJCF of an arrangement.
-
-    Parameters
-    ----------
-    arr : Arrangement
-    width, height : int
-        Largest image size the offscreen buffer must hold.
-    colors : (K, 3) float in [0, 1], optional
-        Per-cuboid colours (default :func:`cuboid_colors`).
+def scene_boxes(arr: Arrangement, colors: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """Every box drawn for an arrangement: supports (as slabs) first, then the cuboids.
 
     Returns
     -------
-    xml : str
-        The MJCF text (fixed float precision, so it is stable).
-    instance_of_geom : (G,) uint16
-        Instance id of every geom in compile order: cuboid index + 1, 0 for supports.
+    dict with
+        ``center (G, 3)``, ``rotation (G, 3, 3)``, ``half (G, 3)`` half sizes,
+        ``rgb (G, 3)`` in [0, 1], ``instance (G,)`` uint16 (cuboid index + 1, 0 = support).
     """
-    rgb = cuboid_colors(arr) if colors is None else np.asarray(colors, float)
+    rgb = cuboid_colors(arr) if colors is None else np.asarray(colors, float).reshape(-1, 3)
     anchor = arr.centers.mean(axis=0) if arr.cuboids else np.zeros(3)
+    frames = [_support_frame(s.point, s.normal, anchor) for s in arr.supports]
+    ns = len(frames)
+    center = np.concatenate([np.array([f[0] for f in frames]).reshape(-1, 3), arr.centers])
+    rotation = np.concatenate([np.array([f[1] for f in frames]).reshape(-1, 3, 3),
+                               arr.rotations])
+    half = np.concatenate([np.tile([SUPPORT_HALF, SUPPORT_HALF, SUPPORT_THICKNESS / 2],
+                                   (ns, 1)), arr.sizes / 2])
+    srgb = np.array([GROUND_RGB if s.id == "ground" else WALL_RGB for s in arr.supports])
+    rgb = np.concatenate([srgb.reshape(-1, 3), rgb])
+    inst = np.concatenate([np.zeros(ns, np.uint16),
+                           np.arange(1, len(arr.cuboids) + 1, dtype=np.uint16)])
+    return {"center": center, "rotation": rotation, "half": half, "rgb": rgb,
+            "instance": inst}
 
-    def f(v: Sequence[float]) -> str:
-        return " ".join(f"{x:.9g}" for x in v)
 
-    geoms: list[str] = []
-    inst: list[int] = []
-    for s in arr.supports:
-        c, R = _support_frame(s.point, s.normal, anchor)
-        color = GROUND_RGB if s.id == "ground" else WALL_RGB
-        geoms.append(f'<geom name="support_{len(inst)}" type="box" '
-                     f'size="{f([SUPPORT_HALF, SUPPORT_HALF, SUPPORT_THICKNESS / 2])}" '
-                     f'pos="{f(c)}" quat="{f(_quat_wxyz_from_matrix(R))}" rgba="{f(color)} 1"/>')
-        inst.append(0)
-    for k, cub in enumerate(arr.cuboids):
-        geoms.append(f'<geom name="cuboid_{k}" type="box" size="{f(cub.size / 2)}" '
-                     f'pos="{f(cub.center)}" quat="{f(_quat_wxyz_from_matrix(cub.rotation))}" '
-                     f'rgba="{f(rgb[k])} 1"/>')
-        inst.append(k + 1)
-    xml = f"""<mujoco model="unseen_render">
+def _pool_mjcf(capacity: int, width: int, height: int) -> str:
+    """A render-only MJCF with ``capacity`` box geoms, all hidden (group 3) until loaded."""
+    geoms = "\n".join(f'    <geom type="box" size="0.1 0.1 0.1" group="{HIDDEN_GROUP}"/>'
+                      for _ in range(capacity))
+    return f"""<mujoco model="unseen_render">
   <compiler angle="radian"/>
   <statistic extent="1" center="0 0 0"/>
   <visual>
@@ -143,48 +137,123 @@ def scene_mjcf(arr: Arrangement, width: int = 640, height: int = 480,
   </visual>
   <worldbody>
     <light directional="true" dir="0.35 0.25 -1" diffuse="0.35 0.35 0.35" specular="0 0 0" castshadow="false"/>
-    {chr(10).join('    ' + g for g in geoms).lstrip()}
+{geoms}
   </worldbody>
 </mujoco>
 """
-    return xml, np.asarray(inst, dtype=np.uint16)
 
 
-def _make_renderer(model, height: int, width: int):
-    """A ``mujoco.Renderer``, trying EGL then OSMesa when ``MUJOCO_GL`` is unset or fails."""
-    import mujoco
+def _choose_gl_backend() -> None:
+    """Default ``MUJOCO_GL`` to EGL, or to OSMesa when no EGL library can be found."""
+    if "MUJOCO_GL" in os.environ:
+        return
+    import ctypes.util
 
-    try:
-        return mujoco.Renderer(model, height, width)
-    except Exception:
-        if os.environ.get("MUJOCO_GL") == "osmesa":
-            raise
-        # The GL backend is chosen at import; a failed EGL context cannot be retried in
-        # this process, so the caller sees the error with a hint.
-        raise RuntimeError("MuJoCo could not create an offscreen GL context; set "
-                           "MUJOCO_GL=egl or MUJOCO_GL=osmesa (Mesa) before starting") from None
+    if ctypes.util.find_library("EGL") is None and ctypes.util.find_library("OSMesa"):
+        os.environ["MUJOCO_GL"] = "osmesa"
+        os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
+    else:
+        os.environ["MUJOCO_GL"] = "egl"
+
+
+def _check_headless_backend() -> None:
+    """Fail clearly when MuJoCo picked GLFW (needs an X display) and there is none.
+
+    ``mujoco`` fixes its GL backend from ``MUJOCO_GL`` when first imported; a process that
+    imported it before ``MUJOCO_GL`` was set cannot switch later (its GL entry points are
+    already bound; swapping the context class renders black frames).
+    """
+    from mujoco.rendering.classic import gl_context
+
+    module = getattr(getattr(gl_context, "GLContext", None), "__module__", "") or ""
+    if module.startswith("mujoco.glfw") and not os.environ.get("DISPLAY"):
+        raise RuntimeError("mujoco was imported before MUJOCO_GL was set, so it chose GLFW, "
+                           "which needs a display; set MUJOCO_GL=egl (or osmesa) in the "
+                           "environment before starting Python (make test does)")
+
+
+class _Pool:
+    """One GL context and a model with ``capacity`` box geoms, re-dressed per arrangement.
+
+    Creating a MuJoCo GL context and drawing its first frame costs 0.2-0.4 s with Mesa;
+    reusing one context for every scene of a process (moving, resizing and recolouring
+    the geoms of a fixed model) keeps a one-view scan near the cost of one render.
+    """
+
+    def __init__(self, capacity: int, width: int, height: int) -> None:
+        _choose_gl_backend()
+        import mujoco
+
+        _check_headless_backend()
+        self.capacity, self.width, self.height = capacity, width, height
+        self.model = mujoco.MjModel.from_xml_string(_pool_mjcf(capacity, width, height))
+        self.data = mujoco.MjData(self.model)
+        try:
+            self.renderer = mujoco.Renderer(self.model, height, width)
+        except Exception as exc:
+            raise RuntimeError(
+                "MuJoCo could not create an offscreen GL context "
+                f"(MUJOCO_GL={os.environ.get('MUJOCO_GL')}): {exc}; install Mesa EGL "
+                "(libegl1 libegl-mesa0) or set MUJOCO_GL=osmesa") from exc
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[HIDDEN_GROUP] = 0
+        self.owner: object | None = None
+        self.lookup = np.zeros(capacity + 1, dtype=np.uint16)  # index -1 -> 0
+
+    def load(self, boxes: dict[str, np.ndarray], owner: object) -> None:
+        m = self.model
+        g = len(boxes["half"])
+        m.geom_group[:] = HIDDEN_GROUP
+        m.geom_group[:g] = 0
+        m.geom_size[:g] = boxes["half"]
+        m.geom_pos[:g] = boxes["center"]
+        m.geom_quat[:g] = _quats_wxyz(boxes["rotation"])
+        m.geom_rgba[:g, :3] = boxes["rgb"]
+        m.geom_rgba[:g, 3] = 1.0
+        m.geom_rbound[:g] = np.linalg.norm(boxes["half"], axis=1)
+        self.lookup[:] = 0
+        self.lookup[:g] = boxes["instance"]
+        # World-body geoms are static: mj_kinematics does not move them, so set their
+        # world poses (xmat is the row-major rotation) directly.
+        self.data.geom_xpos[:g] = boxes["center"]
+        self.data.geom_xmat[:g] = np.asarray(boxes["rotation"]).reshape(g, 9)
+        self.owner = owner
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+#: Process-wide pools, keyed by (pid, width, height): one GL context per image size.
+_POOLS: dict[tuple[int, int, int], _Pool] = {}
+
+
+def _get_pool(n_boxes: int, width: int, height: int) -> _Pool:
+    key = (os.getpid(), width, height)
+    pool = _POOLS.get(key)
+    if pool is None or pool.capacity < n_boxes:
+        if pool is not None:
+            pool.close()
+        cap = 64
+        while cap < n_boxes:
+            cap *= 2
+        pool = _POOLS[key] = _Pool(cap, width, height)
+    return pool
 
 
 class MujocoRenderer:
-    """Renders one arrangement from many cameras (one GL context, reused).
+    """Renders one arrangement from many cameras.
 
-    Use as a context manager or call :meth:`close`.  All frames must have the same
-    size (the intrinsics passed to the constructor's ``width``/``height``).
+    The GL context is shared by every renderer of the same image size in this process
+    (see :class:`_Pool`); several renderers may be alive at once (each re-loads its
+    arrangement when it renders after another one did).  Use as a context manager or
+    call :meth:`close` (which releases nothing but the arrangement).
     """
 
     def __init__(self, arr: Arrangement, width: int = 640, height: int = 480,
                  colors: np.ndarray | None = None) -> None:
-        os.environ.setdefault("MUJOCO_GL", "egl")
-        import mujoco
-
-        xml, self.instance_of_geom = scene_mjcf(arr, width, height, colors)
-        self.model = mujoco.MjModel.from_xml_string(xml)
-        self.data = mujoco.MjData(self.model)
-        mujoco.mj_forward(self.model, self.data)
         self.width, self.height = int(width), int(height)
-        self._renderer = _make_renderer(self.model, self.height, self.width)
-        self._lookup = np.zeros(self.model.ngeom + 1, dtype=np.uint16)  # index -1 -> 0
-        self._lookup[: self.model.ngeom] = self.instance_of_geom
+        self.boxes = scene_boxes(arr, colors)
+        self._pool: _Pool | None = _get_pool(len(self.boxes["half"]), self.width, self.height)
 
     def __enter__(self) -> MujocoRenderer:
         return self
@@ -193,13 +262,13 @@ class MujocoRenderer:
         self.close()
 
     def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None
+        if self._pool is not None and self._pool.owner is self:
+            self._pool.owner = None
+        self._pool = None
 
     def _set_camera(self, intr: Intrinsics, T_world_cam: np.ndarray) -> None:
         """Point MuJoCo's scene camera along the OpenCV camera with an exact frustum."""
-        scene = self._renderer.scene
+        scene = self._pool.renderer.scene
         T = np.asarray(T_world_cam, float)
         near = ZNEAR  # statistic extent is 1
         # Pixel u covers [u - 0.5, u + 0.5]: the image spans u in [-0.5, W - 0.5].
@@ -236,29 +305,32 @@ class MujocoRenderer:
         depth : (H, W) float32, metres along the optical axis, 0 = nothing hit
         instance : (H, W) uint16, cuboid index + 1, 0 = support or background
         """
+        if self._pool is None:
+            raise ValueError("render() on a closed MujocoRenderer")
         if (intr.width, intr.height) != (self.width, self.height):
             raise ValueError(f"intrinsics are {intr.width}x{intr.height}, the renderer was "
                              f"built for {self.width}x{self.height}")
-        r = self._renderer
+        pool = self._pool
+        if pool.owner is not self:
+            pool.load(self.boxes, self)
+        r = pool.renderer
+
+        def draw() -> np.ndarray:
+            r.update_scene(pool.data, camera=-1, scene_option=pool.option)
+            self._set_camera(intr, T_world_cam)
+            return r.render()
+
         r.disable_depth_rendering()
         r.disable_segmentation_rendering()
-        r.update_scene(self.data)
-        self._set_camera(intr, T_world_cam)
-        color = r.render().copy()
-
+        color = draw().copy()
         r.enable_segmentation_rendering()
-        r.update_scene(self.data)
-        self._set_camera(intr, T_world_cam)
-        seg = r.render()
-        geom = np.where(seg[..., 1] == _MJOBJ_GEOM, seg[..., 0], -1)
-        instance = self._lookup[geom]
-        hit = geom >= 0
+        seg = draw()
         r.disable_segmentation_rendering()
-
+        geom = np.where(seg[..., 1] == _MJOBJ_GEOM, seg[..., 0], -1)
+        instance = pool.lookup[geom]
+        hit = geom >= 0
         r.enable_depth_rendering()
-        r.update_scene(self.data)
-        self._set_camera(intr, T_world_cam)
-        depth = r.render().astype(np.float32)
+        depth = draw().astype(np.float32)
         r.disable_depth_rendering()
         depth[~hit | ~np.isfinite(depth) | (depth >= ZFAR * 0.999)] = 0.0
         return color, depth, instance
@@ -266,6 +338,6 @@ class MujocoRenderer:
 
 def render_mujoco(arr: Arrangement, intr: Intrinsics, T_world_cam: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """One-shot :meth:`MujocoRenderer.render` (builds and frees a GL context)."""
+    """One-shot :meth:`MujocoRenderer.render` (on the process's shared GL context)."""
     with MujocoRenderer(arr, intr.width, intr.height) as r:
         return r.render(intr, T_world_cam)

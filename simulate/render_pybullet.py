@@ -22,14 +22,7 @@ import numpy as np
 from pipeline.camera import Intrinsics, invert
 from pipeline.model import Arrangement
 
-from .render_mujoco import (
-    GROUND_RGB,
-    SUPPORT_HALF,
-    SUPPORT_THICKNESS,
-    WALL_RGB,
-    _support_frame,
-    cuboid_colors,
-)
+from .render_mujoco import scene_boxes
 
 #: Near and far clipping planes of the projection, metres.
 ZNEAR = 0.02
@@ -82,16 +75,11 @@ class PybulletRenderer:
 
         self._p = p
         self.client = p.connect(p.DIRECT)
-        rgb = cuboid_colors(arr) if colors is None else np.asarray(colors, float)
-        anchor = arr.centers.mean(axis=0) if arr.cuboids else np.zeros(3)
+        boxes = scene_boxes(arr, colors)
         self._lookup: dict[int, int] = {}
-        for s in arr.supports:
-            c, R = _support_frame(s.point, s.normal, anchor)
-            color = GROUND_RGB if s.id == "ground" else WALL_RGB
-            self._add_box(c, R, np.array([SUPPORT_HALF, SUPPORT_HALF, SUPPORT_THICKNESS / 2]),
-                          (*color, 1.0), 0)
-        for k, cub in enumerate(arr.cuboids):
-            self._add_box(cub.center, cub.rotation, cub.size / 2, (*rgb[k], 1.0), k + 1)
+        for c, R, h, rgb, inst in zip(boxes["center"], boxes["rotation"], boxes["half"],
+                                      boxes["rgb"], boxes["instance"], strict=True):
+            self._add_box(c, R, h, (*rgb, 1.0), int(inst))
         self._maxid = max(self._lookup, default=0)
         self._table = np.zeros(self._maxid + 2, dtype=np.uint16)
         for uid, inst in self._lookup.items():
