@@ -5,13 +5,14 @@ URDF is a tree and has no free-floating joint that PyBullet honours (it turns
 
 ``scene.urdf``
     The whole scene as one tree for viewers and ``yourdfpy``: a root link ``world``;
-    every support a thin-slab link (``box`` of ``SUPPORT_SPAN`` x ``SUPPORT_SPAN`` x
+    every support a slab link (``box`` of ``SUPPORT_SPAN`` x ``SUPPORT_SPAN`` x
     ``SUPPORT_THICKNESS`` scene extents, top face on the support plane) and every static
     body a link on ``fixed`` joints; every free body a link on a ``floating`` joint.
 ``urdf/world.urdf``
-    What PyBullet loads with ``useFixedBase``: one link holding the supports as
-    ``<plane normal=...>`` collisions (PyBullet's URDF extension; a half-space, like the
-    analytic model and MuJoCo's plane) and the boxes of every static body.
+    What PyBullet loads with ``useFixedBase``: one link holding the supports as slabs
+    (as PyBullet's own ``plane.urdf`` does: a wide, thick box whose top face is the
+    plane; PyBullet's ``<plane>`` extension would be a true half-space but ``yourdfpy``
+    and other URDF readers reject it) and the boxes of every static body.
 ``urdf/<body>.urdf``
     One file per free rigid body: one link whose frame is the world frame at export
     time (so loading it at the origin puts it in place), a ``box`` collision and visual
@@ -39,10 +40,10 @@ from pipeline.model import Arrangement
 from .export import RigidBody, rigid_bodies, scene_extent
 from .mjcf import _f, _frame_from_normal, _v
 
-#: Edge of the square slab that stands for a support in ``scene.urdf``, in scene extents.
+#: Edge of the square slab that stands for a support, in scene extents (at least 1 m).
 SUPPORT_SPAN = 4.0
-#: Thickness of that slab, in scene extents.
-SUPPORT_THICKNESS = 0.05
+#: Thickness of that slab, in scene extents (thick, so nothing tunnels through it).
+SUPPORT_THICKNESS = 0.5
 
 
 def rpy_from_matrix(R: np.ndarray) -> np.ndarray:
@@ -112,8 +113,7 @@ def world_urdf(arr: Arrangement, bodies: list[RigidBody], *, mu: float = DEFAULT
              f"    {_ZERO_INERTIAL}"]
     for s in arr.supports:
         lines.append(f"    <collision name={quoteattr('support:' + s.id)}>"
-                     f'<origin xyz="{_v(s.point)}" rpy="0 0 0"/>'
-                     f'<geometry><plane normal="{_v(s.normal)}"/></geometry></collision>')
+                     f"{_slab(arr, s)}</collision>")
     for b in bodies:
         if b.static:
             lines += _boxes(arr, b.members, "    ")
@@ -121,24 +121,28 @@ def world_urdf(arr: Arrangement, bodies: list[RigidBody], *, mu: float = DEFAULT
     return "\n".join(lines) + "\n"
 
 
+def _slab(arr: Arrangement, s) -> str:
+    """``<origin/><geometry/>`` of the slab standing for support ``s``."""
+    ext = scene_extent(arr)
+    span, thick = SUPPORT_SPAN * ext, SUPPORT_THICKNESS * ext
+    centre = s.point - s.normal * (thick / 2)
+    return (f"{_origin(centre, _frame_from_normal(s.normal))}"
+            f'<geometry><box size="{_f(span)} {_f(span)} {_f(thick)}"/></geometry>')
+
+
 def scene_urdf(arr: Arrangement, bodies: list[RigidBody], *, mu: float = DEFAULT_MU,
                welds: list | None = None) -> str:
     """The whole scene as one URDF tree (supports as slabs, free bodies ``floating``)."""
-    ext = scene_extent(arr)
-    span, thick = SUPPORT_SPAN * ext, SUPPORT_THICKNESS * ext
     lines = ['<robot name="scene">',
              "  <!-- PyBullet turns floating joints into fixed ones: to simulate, load",
              "       urdf/world.urdf (useFixedBase) and urdf/<body>.urdf for each free body. -->",
              '  <link name="world"/>']
     for s in arr.supports:
-        R = _frame_from_normal(s.normal)
-        centre = s.point - s.normal * (thick / 2)
         link = "support:" + s.id
         lines += [f"  <link name={quoteattr(link)}>", f"    {_contact(mu)}",
                   f"    {_ZERO_INERTIAL}"]
-        geo = f'<geometry><box size="{_f(span)} {_f(span)} {_f(thick)}"/></geometry>'
-        lines += [f"    <collision>{_origin(centre, R)}{geo}</collision>",
-                  f"    <visual>{_origin(centre, R)}{geo}"
+        lines += [f"    <collision>{_slab(arr, s)}</collision>",
+                  f"    <visual>{_slab(arr, s)}"
                   '<material name="support"><color rgba="0.5 0.5 0.5 1"/></material></visual>',
                   "  </link>",
                   f"  <joint name={quoteattr(link + ':joint')} type=\"fixed\">"
