@@ -29,7 +29,7 @@ from typing import Literal
 
 import numpy as np
 
-from pipeline.model import Arrangement, Cuboid, box_corners
+from pipeline.model import Arrangement, Cuboid, box_corners, is_support_id
 
 #: A typed contact-graph edge: ``(a, b, type)`` with ``a <= b``.
 Edge = tuple[str, str, str]
@@ -455,6 +455,43 @@ def compare_graphs(pred_edges: Iterable[Edge], gt_edges: Iterable[Edge],
     typed = PRF(len(mapped & gt), len(mapped), len(gt))
     untyped = PRF(len(mapped_pairs & gt_pairs), len(mapped_pairs), len(gt_pairs))
     return GraphScore(typed, untyped, tuple(sorted(mapped - gt)), tuple(sorted(gt - mapped)))
+
+
+@dataclass(frozen=True)
+class Valence:
+    """Table 3's graph statistics: proxies, contacts and per-proxy valence.
+
+    ``valence`` of a cuboid is its number of edges (to cuboids and to supports);
+    supports are not proxies and get no valence of their own.
+    """
+
+    n_proxies: int
+    n_contacts: int
+    n_support_contacts: int
+    max: int
+    median: float
+    mean: float
+    min: int
+
+    def to_json(self) -> dict:
+        return {"proxies": self.n_proxies, "contacts": self.n_contacts,
+                "support_contacts": self.n_support_contacts, "max_valence": self.max,
+                "median_valence": self.median, "mean_valence": self.mean,
+                "min_valence": self.min}
+
+
+def valence_stats(edges: Iterable[Edge], cuboid_ids: Iterable[str]) -> Valence:
+    """Valence statistics of a contact graph over the given cuboids (Table 3 of the paper)."""
+    ids = list(cuboid_ids)
+    row = {name: k for k, name in enumerate(ids)}
+    pairs = {_edge(a, b, t)[:2] for a, b, t in edges}
+    ends = np.array([row[n] for p in pairs for n in p if n in row], dtype=np.intp)
+    deg = np.bincount(ends, minlength=len(ids))
+    n_sup = sum(1 for a, b in pairs if is_support_id(a) or is_support_id(b))
+    if not len(ids):
+        return Valence(0, len(pairs), n_sup, 0, 0.0, 0.0, 0)
+    return Valence(len(ids), len(pairs), n_sup, int(deg.max()), float(np.median(deg)),
+                   float(deg.mean()), int(deg.min()))
 
 
 # ============================================================================ sizes

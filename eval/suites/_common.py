@@ -65,14 +65,18 @@ def run_suite_tasks(args: argparse.Namespace, tasks: Iterable, label: str):
 def score_record(pred, gt, initial=None, graph: str = "union") -> dict:  # noqa: ANN001
     """A compact JSON record of :func:`eval.metrics.score_arrangement` for a task result.
 
-    Keeps the edge counts (so scenes can be summed, micro-averaged), mean IoU and the
-    size error; aggregate with :func:`aggregate_prf` on ``"optimized.typed"`` etc.
+    Keeps the edge counts (so scenes can be summed, micro-averaged), mean IoU, the
+    size error and Table 3's valence statistics of the true and predicted graphs;
+    aggregate with :func:`aggregate_prf` on ``"optimized.typed"`` etc.
     """
-    from eval.metrics import score_arrangement
+    from eval.metrics import contact_graph, score_arrangement, valence_stats
 
     s = score_arrangement(pred, gt, initial=initial, graph=graph)
     rec: dict[str, Any] = {"n_pred": s.n_pred, "n_gt": s.n_gt, "mean_iou": s.mean_iou,
                            "n_matched": len(s.matching.pairs)}
+    source = s.graph_source
+    rec["valence"] = {"gt": valence_stats(contact_graph(gt, source), gt.ids).to_json(),
+                      "optimized": valence_stats(contact_graph(pred, source), pred.ids).to_json()}
     for name, g in (("optimized", s.optimized), ("initial", s.initial)):
         if g is None:
             continue

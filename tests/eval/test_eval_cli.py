@@ -109,6 +109,7 @@ def test_common_score_record_and_plots(tmp_path):
     rec = _common.score_record(pred, gt, graph="listed")
     assert rec["optimized"]["typed"] == {"tp": 1, "n_pred": 2, "n_gt": 2}
     assert rec["optimized"]["untyped"] == {"tp": 2, "n_pred": 2, "n_gt": 2}
+    assert rec["valence"]["gt"]["contacts"] == 2 and rec["valence"]["gt"]["max_valence"] == 2
     json.dumps(rec)
     _common.plot_series(tmp_path / "p.png", {"ours": ([1, 2, 4], [0.1, 0.2, 0.5])},
                         xlabel="boxes", ylabel="s", logy=True)

@@ -22,6 +22,7 @@ from eval.metrics import (
     paper_size_error,
     relative_size_errors,
     score_arrangement,
+    valence_stats,
 )
 from pipeline.model import (
     Arrangement,
@@ -178,6 +179,15 @@ def test_graph_extra_edge_unmatched_node_and_order_free():
     assert s4.typed.precision == pytest.approx(0.5)
     assert s4.typed.recall == pytest.approx(2 / 3)
     assert s4.typed.f1 == pytest.approx(4 / 7)
+
+
+def test_valence_by_hand():
+    edges = [("a", "b", "touch"), ("b", "c", "fixed"), ("a", "ground", "touch"),
+             ("c", "ground", "touch"), ("b", "wall:0", "fixed"), ("b", "a", "touch")]
+    v = valence_stats(edges, ["a", "b", "c", "d"])
+    # degrees a 2, b 3, c 2, d 0 (the duplicate b-a counts once)
+    assert (v.n_proxies, v.n_contacts, v.n_support_contacts) == (4, 5, 3)
+    assert (v.max, v.median, v.mean, v.min) == (3, 2.0, 7 / 4, 0)
 
 
 def test_prf_edge_cases_and_micro_sum():
