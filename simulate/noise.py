@@ -244,15 +244,16 @@ def apply_noise(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator,
     clean = np.asarray(depth, dtype=np.float64)
     H, W = clean.shape
     g_lat, g_fly, g_fly_w, g_ax, g_drop = rng.spawn(5)
-    _, theta = incidence_angle(clean, intr, m.edge_jump)
-    theta0 = np.nan_to_num(theta, nan=0.0)
+    if m.lateral or m.axial or m.dropout:
+        theta0 = np.nan_to_num(incidence_angle(clean, intr, m.edge_jump)[1], nan=0.0)
     z = clean.copy()
 
     if m.lateral:
-        s = lateral_sigma_px(theta0)
-        off = np.rint(g_lat.standard_normal((2, H, W)) * s).astype(np.int64)
-        v, u = np.mgrid[0:H, 0:W]
-        z = clean[np.clip(v + off[0], 0, H - 1), np.clip(u + off[1], 0, W - 1)]
+        s = lateral_sigma_px(theta0).astype(np.float32)
+        off = np.rint(g_lat.standard_normal((2, H, W), dtype=np.float32) * s).astype(np.int32)
+        rows = np.clip(np.arange(H, dtype=np.int32)[:, None] + off[0], 0, H - 1)
+        cols = np.clip(np.arange(W, dtype=np.int32)[None, :] + off[1], 0, W - 1)
+        z = clean[rows, cols]
 
     if m.flying_pixels:
         best = np.zeros_like(z)

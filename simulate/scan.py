@@ -400,6 +400,7 @@ def write_scan(scan: Scan, scan_dir: str | os.PathLike) -> None:
     """
     scan_dir = Path(scan_dir)
     scan_dir.mkdir(parents=True, exist_ok=True)
+    _remove_stale(scan_dir, len(scan.frames))
     if len(scan.frames) == 1:
         _write_frame(scan.frames[0], scan_dir, with_points=False)
     else:
@@ -408,6 +409,30 @@ def write_scan(scan: Scan, scan_dir: str | os.PathLike) -> None:
             sub.mkdir(exist_ok=True)
             _write_frame(frame, sub)
     write_ply(scan_dir / "points.ply", scan.points, scan.colors, scan.instance)
+
+
+#: The files :func:`write_scan` writes per view.
+VIEW_FILES = ("color.png", "depth.png", "instance.png", "intrinsics.json", "camera_pose.json",
+              "points.ply")
+
+
+def _remove_stale(scan_dir: Path, views: int) -> None:
+    """Delete our own files of an earlier scan with another layout or more views.
+
+    Only the names this module writes are removed (per-view files at the top when writing
+    several views; ``view<k>/`` folders with ``k >= views``), so a re-used folder never
+    mixes two scans; anything else in the folder is left alone.
+    """
+    if views > 1:
+        for name in VIEW_FILES[:-1]:
+            (scan_dir / name).unlink(missing_ok=True)
+    for sub in scan_dir.iterdir():
+        m = re.fullmatch(r"view(\d+)", sub.name)
+        if m and sub.is_dir() and (views == 1 or int(m.group(1)) >= views):
+            for name in VIEW_FILES:
+                (sub / name).unlink(missing_ok=True)
+            if not any(sub.iterdir()):
+                sub.rmdir()
 
 
 def _read_frame(folder: Path) -> Frame:

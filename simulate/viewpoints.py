@@ -28,13 +28,16 @@ class ViewRanges:
 
     ``azimuth_deg = None`` means the full circle without walls, and +-75 degrees around
     the open side (the mean wall normal) with walls.  ``fit`` moves the camera back so
-    the scene's bounding sphere fills at most the image (never closer than sampled).
+    the scene's bounding sphere fills at most the image (never closer than sampled, and
+    never farther than ``max_fit_distance``, the Kinect's useful range: a large room is
+    then seen in part, as a real single scan would).
     """
 
     distance: tuple[float, float] = (1.5, 3.0)
     elevation_deg: tuple[float, float] = (20.0, 45.0)
     azimuth_deg: tuple[float, float] | None = None
     fit: bool = True
+    max_fit_distance: float = 4.0
 
     @classmethod
     def from_dict(cls, d: dict | None) -> ViewRanges:
@@ -116,7 +119,8 @@ def sample_viewpoints(arr: Arrangement, rng: np.random.Generator, views: int = 1
     dist = rng.uniform(*r.distance, size=views)
     if r.fit:
         half_fov = np.arctan(min(intr.width / (2 * intr.fx), intr.height / (2 * intr.fy)))
-        dist = np.maximum(dist, 1.1 * radius / np.sin(half_fov))
+        fit = min(1.1 * radius / np.sin(half_fov), r.max_fit_distance)
+        dist = np.maximum(dist, fit)
 
     dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
     for s in walls:  # stay in front of each wall: clamp the distance along the ray

@@ -260,3 +260,19 @@ def test_frame_validates_shapes():
     with pytest.raises(ValueError, match="depth"):
         Frame(np.zeros((240, 320, 3), np.uint8), np.zeros((10, 10), np.float32),
               np.zeros((240, 320), np.uint16), SMALL, np.eye(4))
+
+
+def test_rewriting_a_folder_leaves_no_stale_views(arr, tmp_path):
+    from simulate.scan import read_scan_dir, scan_arrangement, write_scan
+
+    three = scan_arrangement(arr, np.random.default_rng(0), views=3, intrinsics=SMALL)
+    one = scan_arrangement(arr, np.random.default_rng(0), views=1, intrinsics=SMALL)
+    (tmp_path / "notes.txt").write_text("keep me")
+    write_scan(one, tmp_path)
+    write_scan(three, tmp_path)
+    assert {p.name for p in tmp_path.iterdir()} == {"view0", "view1", "view2", "points.ply",
+                                                     "notes.txt"}
+    write_scan(one, tmp_path)
+    assert not any(p.name.startswith("view") for p in tmp_path.iterdir())
+    assert len(read_scan_dir(tmp_path).frames) == 1
+    assert (tmp_path / "notes.txt").read_text() == "keep me"
