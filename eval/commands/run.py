@@ -1,0 +1,181 @@
+"""``unseen run INPUT --out DIR``: scan -> arrangement.
+
+Stage ``initial`` (section 4.1) writes ``arrangement.json`` (the initial cuboids, no
+contacts), ``overlay.png``, ``view.png`` and ``report.md``.  The full pipeline calls
+:func:`run_initial` and continues from its result.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+import time
+from pathlib import Path
+
+from pipeline.errors import InputError
+
+R = "../shared/data/real"
+EPILOG = f"""\
+inputs:
+  a scene directory (unseen synth):  unseen run scenes/table0 --out out --stage initial
+  an RGB-D folder with color.png, depth.png (16-bit mm), intrinsics.json
+  [camera_pose.json, instance.png, scribbles.png]:  unseen run frame_dir --out out
+  a point cloud (.ply, .pcd ascii/binary/binary_compressed with 'label', .npz 'pc'):
+                                     unseen run cloud.pcd --out out
+
+the real scans in {R} (each loads with these flags):
+  mOSD organised PCD with labels (object id = label // 10, table labels -> background):
+    unseen run {R}/osd_stacked_boxes/test16.pcd --out out/osd16
+  Shao/RAPter Kinect boxes (float32 .dat depth in metres, colour cropped from a screenshot):
+    unseen run {R}/shao_kinect_boxes/3boxes_depth16bits.dat --color derived/3boxes_rgb_640x480.png \\
+      --intrinsics 519.3033,518.1640,328.5095,252.8256 --out out/shao3
+  Metric3D NYU (registered jpg + mm png):
+    unseen run {R}/metric3d_nyu --color rgb_00000.jpg --depth sync_depth_00000.png \\
+      --intrinsics 518.8579,519.46961,325.58245,253.73617 --out out/nyu0
+  Open3D test data, NYU raw (little-endian PGM disparity):
+    unseen run {R}/open3d_testdata_rgbd --color NYU_color.ppm --depth NYU_depth.pgm \\
+      --depth-format nyu-disparity --intrinsics 525,525,319.5,239.5 --out out/nyu_raw
+  Open3D test data, TUM (depth / 5000):
+    unseen run {R}/open3d_testdata_rgbd --color TUM_color.png --depth TUM_depth.png \\
+      --depth-scale 5000 --intrinsics 525,525,319.5,239.5 --out out/tum
+  Open3D test data, SUN (bit-rotated depth):
+    unseen run {R}/open3d_testdata_rgbd --color SUN_color.jpg --depth SUN_depth.png \\
+      --depth-format sun-bitrot --intrinsics 525,525,319.5,239.5 --max-depth 7 --out out/sun
+  SUN RGB-D (mmdet3d) frame, derived mm depth:
+    unseen run {R}/sunrgbd_mmdet3d --color 000001_image.jpg --depth derived/000001_depth_mm.png \\
+      --intrinsics 529.5,529.5,365,265 --out out/sunrgbd1
+  SUN RGB-D points only (upright, z up):  unseen run {R}/sunrgbd_mmdet3d/000001_lidar.npz --out out/s1pc
+
+If the ground is not found, say which way is up in the input frame: --up -y (camera
+frames, y down), --up z (z-up clouds).
+"""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("input", help="scene dir, RGB-D folder, depth file, or .ply/.pcd/.npz cloud")
+    p.add_argument("--out", required=True, help="output folder (created)")
+    p.add_argument("--stage", default="initial", choices=["initial", "full"],
+                   help="initial: section 4.1 only (default for now)")
+    p.add_argument("--color", help="colour image file (relative to INPUT folder or absolute)")
+    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat)")
+    p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
+    p.add_argument("--depth-format", default="auto",
+                   choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
+                   help="depth encoding (auto: .dat -> float32-dat, else png / --depth-scale)")
+    p.add_argument("--depth-scale", type=float, default=1000.0,
+                   help="raw depth units per metre for png (1000 = mm, 5000 = TUM)")
+    p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
+    p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
+    p.add_argument("--instance", help="instance id image (16-bit, 0 = none)")
+    p.add_argument("--scribbles", help="scribble image: one stroke id/colour per object")
+    p.add_argument("--segmentation", default="auto", choices=["auto", "instance", "cluster"],
+                   help="auto: instance ids if present, else scribbles, else clustering")
+    p.add_argument("--cell", type=float, default=None,
+                   help="voxel size as a fraction of the scene diameter (default 0.005)")
+    p.add_argument("--no-edges", action="store_true", help="skip the Canny edge refinement")
+    p.add_argument("--seed", type=int, default=0, help="random seed (RANSAC)")
+
+
+def run_initial(args: argparse.Namespace, progress=None):
+    """Load INPUT and run section 4.1: returns (scan_input, arrangement, report dict)."""
+    import numpy as np
+
+    from pipeline.fit import CELL_REL
+    from pipeline.initial import initial_cuboids
+    from pipeline.scan_io import load_scan
+
+    t0 = time.perf_counter()
+    scan = load_scan(args.input, color=args.color, depth=args.depth, intrinsics=args.intrinsics,
+                     depth_format=args.depth_format, depth_scale=args.depth_scale, up=args.up,
+                     max_depth=args.max_depth, instance=args.instance, scribbles=args.scribbles)
+    t_load = time.perf_counter() - t0
+    rng = np.random.default_rng(args.seed)
+    arr, report = initial_cuboids(scan, rng=rng, cell_rel=args.cell or CELL_REL,
+                                  edges=not args.no_edges, segmentation=args.segmentation,
+                                  progress=progress)
+    report["timings"] = {"load": t_load, **report["timings"]}
+    report["timings"]["total"] = float(sum(v for k, v in report["timings"].items() if k != "total"))
+    return scan, arr, report
+
+
+def write_initial_outputs(out: Path, scan, arr, report: dict, command: str, seed: int) -> None:
+    """arrangement.json, overlay.png, view.png, report.md."""
+    import numpy as np
+
+    from pipeline import atomic
+    from pipeline.arrangement_io import write_arrangement
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.pictures import depth_picture, draw_overlay, draw_view, splat_points, write_png
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_arrangement(arr, out / "arrangement.json")
+    T = np.asarray(arr.meta["camera_pose"], float)
+    world = report["world"]
+    labels = report["labels"]
+    if scan.image is not None:
+        base, intr = scan.image, scan.intrinsics
+    elif scan.depth is not None:
+        base, intr = depth_picture(scan.depth), scan.intrinsics
+    else:  # a cloud without a camera: render the points from a virtual camera
+        intr = Intrinsics.kinect_v1()
+        lo, hi = np.percentile(world, [2, 98], axis=0)
+        mid, r = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+        T = look_at(mid + np.array([0.0, -0.9 * r, 0.6 * r]), mid)
+        base = splat_points(world, scan.colors, intr, T)
+    tags = [[c.id for c in arr.cuboids]]
+    overlay = draw_overlay(base, intr, T, [(arr, "palette", "solid")], labels=tags)
+    write_png(out / "overlay.png", overlay)
+    colors = scan.colors
+    view = draw_view(world[labels >= 0], colors[labels >= 0] if colors is not None else None,
+                     [(arr, "palette", "solid")],
+                     title=f"{len(arr.cuboids)} initial cuboids, {report['counts']['objects']} objects")
+    write_png(out / "view.png", view)
+    atomic.write_text(out / "report.md", report_markdown(arr, report, command, seed))
+
+
+def report_markdown(arr, report: dict, command: str, seed: int) -> str:
+    try:
+        from importlib.metadata import version
+        ver = version("unseen")
+    except Exception:  # noqa: BLE001
+        ver = "unknown"
+    c = report["counts"]
+    lines = ["# unseen run: initial cuboids", "",
+             f"- command: `{command}`", f"- seed: {seed}", f"- unseen {ver}",
+             f"- segmentation: {report['segmentation']}",
+             f"- voxel cell: {report['cell'] * 1000:.1f} mm, plane threshold "
+             f"{report['plane_threshold'] * 1000:.1f} mm", "",
+             "## Timings", "", "| step | seconds |", "|---|---|"]
+    lines += [f"| {k} | {v:.3f} |" for k, v in report["timings"].items()]
+    lines += ["", "## Counts", "", "| what | count |", "|---|---|"]
+    lines += [f"| {k} | {v} |" for k, v in c.items()]
+    lines += ["", "## Cuboids", "", "| id | object | points | size (m) | centre (m) |",
+              "|---|---|---|---|---|"]
+    for cb in arr.cuboids:
+        lines.append(f"| {cb.id} | {cb.object} | {cb.extra.get('points', '')} | "
+                     f"{' x '.join(f'{v:.3f}' for v in cb.size)} | "
+                     f"{', '.join(f'{v:.3f}' for v in cb.center)} |")
+    lines += ["", "Supports: " + ", ".join(s.id for s in arr.supports)]
+    if report["notes"]:
+        lines += ["", "Notes: " + "; ".join(report["notes"])]
+    return "\n".join(lines) + "\n"
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.stage != "initial":
+        raise InputError(f"--stage {args.stage}: not yet available; use --stage initial")
+    from pipeline.progress import Progress
+
+    with Progress(None, "unseen run") as bar:
+        scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(f"--out {out}: exists and is not a folder")
+    command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
+        if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
+    write_initial_outputs(out, scan, arr, report, command, args.seed)
+    c = report["counts"]
+    print(f"{c['cuboids']} cuboids from {c['objects']} objects, {c['walls']} walls, "
+          f"{report['timings']['total']:.2f} s -> {out}")
+    return 0

@@ -1,0 +1,200 @@
+"""From a scan to the initial cuboids (section 4.1): planes, objects, boxes, edge snapping.
+
+``initial_cuboids(scan, rng=...)`` runs the stage and returns the arrangement (cuboids
+with their source object, point count and observed box; ground and wall supports; no
+contacts; ``meta.camera_pose`` the camera-to-world transform chosen) and a report
+dict with the timing of every step and the counts.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from .camera import invert, project, transform
+from .fit import CELL_REL, fit_object
+from .model import Arrangement, Cuboid, ObservedBox
+from .planes import find_frame, scene_scale
+from .scan_io import ScanInput
+from .segment import flying_pixels, grabcut_scribbles, segment_objects
+
+SEGMENTATIONS = ("auto", "instance", "cluster")
+#: An object needs at least this fraction of the scan's points (smaller clusters are specks).
+MIN_OBJECT_FRACTION = 1e-3
+
+
+def _solid_test(scan: ScanInput, T_world_cam: np.ndarray, pix_label: np.ndarray,
+                tol: float) -> Callable[[np.ndarray], np.ndarray]:
+    """World points -> True where they are hidden behind a measured surface that is not
+    a support plane (or where the sensor has no reading), i.e. where an object may be."""
+    T_cw = invert(T_world_cam)
+    depth = scan.depth
+    intr = scan.intrinsics
+    H, W = depth.shape
+
+    def solid(points: np.ndarray) -> np.ndarray:
+        uv, z = project(transform(T_cw, points), intr)
+        u = np.round(uv[:, 0])
+        v = np.round(uv[:, 1])
+        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        iu = np.where(inside, u, 0).astype(int)
+        iv = np.where(inside, v, 0).astype(int)
+        d = depth[iv, iu]
+        lab = pix_label[iv, iu]
+        hidden = (d <= 0) | ((z >= d - tol) & (lab != -2))
+        return ~inside | hidden
+
+    return solid
+
+
+def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: float = CELL_REL,
+                    edges: bool = True, segmentation: str = "auto",
+                    progress: Callable[[str], None] | None = None,
+                    ) -> tuple[Arrangement, dict]:
+    """Run section 4.1 on a loaded scan.
+
+    Parameters
+    ----------
+    scan : the input (see :mod:`pipeline.scan_io`)
+    rng : the only source of randomness (RANSAC seeds)
+    cell_rel : voxel size as a fraction of the scene diameter
+    edges : snap boxes to Canny edges when a colour image exists
+    segmentation : ``auto`` (instance ids, else scribbles + GrabCut, else clustering),
+        ``instance`` (require ids) or ``cluster`` (ignore ids)
+    progress : optional callable told the name of each step as it starts
+
+    Returns
+    -------
+    arrangement : Arrangement
+    report : dict with ``timings`` (step -> seconds), ``counts`` and ``notes``
+    """
+    from .errors import InputError
+
+    if segmentation not in SEGMENTATIONS:
+        raise InputError(f"--segmentation {segmentation!r}: expected one of {', '.join(SEGMENTATIONS)}")
+    timings: dict[str, float] = {}
+    notes = list(scan.notes)
+
+    def step(name: str) -> float:
+        if progress is not None:
+            progress(name)
+        return time.perf_counter()
+
+    # ---- planes and world frame
+    t = step("planes")
+    camera = scan.pixels is not None and scan.intrinsics is not None
+    pts = scan.points
+    if len(pts) == 0 or not np.all(np.isfinite(pts)):
+        raise InputError(f"{scan.source}: empty or non-finite point cloud")
+    frame = find_frame(pts, rng, up=scan.up, T_world_input=scan.T_world_cam,
+                       camera_frame=camera)
+    world = transform(frame.T_world_input, pts)
+    timings["planes"] = time.perf_counter() - t
+
+    # ---- objects
+    t = step("segment")
+    diameter = scene_scale(world)
+    cell = cell_rel * diameter
+    obj_mask = frame.labels == -1
+    pix_label = None
+    if camera:
+        fly = flying_pixels(scan.depth)
+        obj_mask &= ~fly[scan.pixels[:, 0], scan.pixels[:, 1]]
+    instance = scan.instance if segmentation != "cluster" else None
+    if segmentation == "instance" and (instance is None or not np.any(instance > 0)):
+        raise InputError(f"{scan.source}: --segmentation instance but the input has no instance ids")
+    if instance is not None and scan.instance_objects:
+        names_of = scan.instance_objects
+        objs = sorted(set(names_of.values()))
+        lut = np.zeros(int(max(names_of)) + 1, dtype=np.int64)
+        for k, nm in names_of.items():
+            lut[k] = objs.index(nm) + 1
+        inst = np.where((instance > 0) & (instance < len(lut)), lut[np.clip(instance, 0, len(lut) - 1)], 0)
+        obj_names_map = {i + 1: nm for i, nm in enumerate(objs)}
+    else:
+        inst, obj_names_map = instance, {}
+    scribble_labels = None
+    if (inst is None or not np.any(inst > 0)) and scan.scribbles is not None and scan.image is not None:
+        allowed = np.zeros(scan.depth.shape, bool)
+        allowed[scan.pixels[obj_mask, 0], scan.pixels[obj_mask, 1]] = True
+        scribble_labels = grabcut_scribbles(scan.image, scan.depth, scan.scribbles, allowed)
+    labels, names = segment_objects(world, obj_mask, cell, instance=inst, pixels=scan.pixels,
+                                    scribble_labels=scribble_labels,
+                                    min_points=max(30, int(MIN_OBJECT_FRACTION * len(world))))
+    if obj_names_map:
+        names = [obj_names_map.get(int(nm[4:]), nm) if nm.startswith("inst") else nm for nm in names]
+    timings["segment"] = time.perf_counter() - t
+
+    # ---- cuboids
+    t = step("fit")
+    T_world_cam = frame.T_world_input
+    if camera:
+        pix_label = np.full(scan.depth.shape, -1, dtype=np.int64)
+        pix_label[scan.pixels[:, 0], scan.pixels[:, 1]] = np.where(frame.labels >= 0, -2, labels)
+    boxes = []  # (object index, FittedBox)
+    for k in range(len(names)):
+        sel = labels == k
+        solid = None
+        if camera:
+            solid = _solid_test(scan, T_world_cam, pix_label, tol=cell)
+        for b in fit_object(world[sel], cell, rng, solid=solid, plane_threshold=max(cell, frame.threshold)):
+            boxes.append((k, b))
+    timings["fit"] = time.perf_counter() - t
+
+    # ---- edge refinement
+    refined = 0
+    edge_infos = []
+    if edges and camera and scan.image is not None and boxes:
+        from .edges import edge_map, refine_box
+
+        t = step("edges")
+        em = edge_map(scan.image)
+        out = []
+        for k, b in boxes:
+            sel = labels == k
+            c, R, info = refine_box(b.center, b.rotation, b.size, world[sel], em, scan.intrinsics,
+                                    T_world_cam, upright=not b.slanted)
+            edge_infos.append(info)
+            refined += int(info.get("accepted", False))
+            out.append((k, type(b)(c, R, b.size, b.points, b.slanted)))
+        boxes = out
+        timings["edges"] = time.perf_counter() - t
+
+    # ---- arrangement
+    t = step("assemble")
+    cuboids = []
+    for i, (k, b) in enumerate(boxes):
+        extra = {"points": int(b.points)}
+        if b.slanted:
+            extra["slanted"] = True
+        cuboids.append(Cuboid(f"b{i}", b.center, b.rotation, b.size, object=names[k],
+                              observed=ObservedBox(b.center, b.size), extra=extra))
+    meta = {"camera_pose": np.asarray(T_world_cam).tolist(),
+            "source": scan.source,
+            "input_frame": "camera" if camera else "cloud",
+            "stage": "initial",
+            "cell": cell,
+            "plane_threshold": frame.threshold}
+    if scan.intrinsics is not None:
+        meta["intrinsics"] = scan.intrinsics.to_json()
+    arr = Arrangement(tuple(cuboids), (frame.ground,) + tuple(frame.walls), (), meta=meta)
+    timings["assemble"] = time.perf_counter() - t
+    timings["total"] = float(sum(timings.values()))
+    counts = {"points": int(len(world)),
+              "ground_points": int((frame.labels == 0).sum()),
+              "wall_points": int((frame.labels >= 1).sum()),
+              "walls": len(frame.walls),
+              "object_points": int((labels >= 0).sum()),
+              "objects": len(names),
+              "cuboids": len(cuboids),
+              "slanted": int(sum(b.slanted for _, b in boxes)),
+              "edge_refined": refined,
+              "edge_tried": len(edge_infos)}
+    report = {"timings": timings, "counts": counts, "notes": notes,
+              "segmentation": ("instance" if inst is not None and np.any(inst > 0) else
+                               "scribbles" if scribble_labels is not None else "cluster"),
+              "cell": cell, "plane_threshold": frame.threshold, "objects": names,
+              "labels": labels, "world": world}
+    return arr, report

@@ -1,0 +1,623 @@
+"""Loading scans: scene directories, RGB-D folders, real-sensor depth formats, PLY/PCD clouds.
+
+Everything becomes one :class:`ScanInput`: points in the input's own frame (the camera
+frame for an RGB-D frame, the file's frame for a cloud), optional colours, per-point
+instance ids, the colour/depth images with their intrinsics, and the camera-to-world
+pose when the input carries one (``scan/camera_pose.json`` of a synthetic scene).
+
+Supported inputs (see ``unseen run --help`` for the flags of each real data set):
+
+* a scene directory written by ``unseen synth`` (its ``scan/`` sub-folder is read);
+* an RGB-D folder with ``color.png``, ``depth.png``, ``intrinsics.json`` and optional
+  ``camera_pose.json``, ``instance.png`` (16-bit ids), ``scribbles.png``;
+* any folder plus ``color=`` / ``depth=`` file names and ``intrinsics=(fx, fy, cx, cy)``;
+* depth encodings: 16-bit PNG / PGM divided by ``depth_scale`` (1000 = mm, 5000 = TUM),
+  ``nyu-disparity`` (NYU raw PGM: little-endian despite the PGM spec, Kinect disparity,
+  ``d = 351.3 / (1092.5 - raw)``), ``sun-bitrot`` (SUN RGB-D: ``mm = (v >> 3) | (v << 13)``),
+  ``float32-dat`` (int32 rows, int32 cols, float32 metres: RAPter / Shao Kinect captures);
+* point clouds: ``.ply`` (ascii / binary, vertex properties ``x y z`` and optional colour
+  and ``instance``/``label``), ``.pcd`` (ascii, binary and binary_compressed, with an
+  optional ``label`` field used as instance ids), ``.npz`` with key ``pc`` (N x 3 or 6).
+
+Organised clouds (PCD ``HEIGHT > 1``) are turned back into an RGB-D frame with the
+given (or Kinect default) intrinsics, so overlays and visibility tests work on them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import struct
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .camera import Intrinsics, backproject, read_intrinsics, read_pose
+from .errors import InputError
+
+#: Clouds larger than this are voxel-downsampled right after loading.
+MAX_POINTS = 2_000_000
+
+DEPTH_FORMATS = ("auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat")
+
+
+@dataclass(frozen=True)
+class ScanInput:
+    """A scan, in the input's own frame.
+
+    Attributes
+    ----------
+    points : (n, 3) float
+        Points in the input frame (camera frame for RGB-D), metres; finite.
+    colors : (n, 3) float or None
+        RGB in [0, 1].
+    instance : (n,) int or None
+        Per-point instance id, 0 = background / unknown.
+    pixels : (n, 2) int or None
+        (v, u) pixel of each point when it came from an image.
+    image : (H, W, 3) uint8 or None
+        Colour image, RGB.
+    depth : (H, W) float or None
+        Depth in metres along z, 0 = no reading.
+    intrinsics : Intrinsics or None
+    T_world_cam : (4, 4) float or None
+        Camera-to-world pose given by the input (None: the pipeline chooses one).
+    scribbles : (H, W) int or None
+        User strokes, one non-zero value per object (0 = none).
+    instance_image : (H, W) int or None
+    up : (3,) float or None
+        Up direction in the input frame when the user gave it.
+    source : str
+        Where it came from (for reports).
+    notes : list of str
+        What the loader did (downsampled, dropped NaN, ...).
+    """
+
+    points: np.ndarray
+    colors: np.ndarray | None = None
+    instance: np.ndarray | None = None
+    pixels: np.ndarray | None = None
+    image: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    intrinsics: Intrinsics | None = None
+    T_world_cam: np.ndarray | None = None
+    scribbles: np.ndarray | None = None
+    instance_image: np.ndarray | None = None
+    up: np.ndarray | None = None
+    source: str = ""
+    notes: list = field(default_factory=list)
+    #: instance id -> object name (a synthetic scene's ``scene.json``: id k = cuboids[k-1])
+    instance_objects: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return int(len(self.points))
+
+    @property
+    def has_image(self) -> bool:
+        return self.image is not None and self.intrinsics is not None
+
+
+# ----------------------------------------------------------------------------------- images
+def _imread(path: Path, what: str, flags: int | None = None) -> np.ndarray:
+    import cv2
+
+    if not path.is_file():
+        raise InputError(f"{path}: no such {what} file")
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED if flags is None else flags)
+    if img is None or img.size == 0:
+        raise InputError(f"{path}: cannot read the {what} image (not a PNG/JPEG/PPM/PGM?)")
+    return img
+
+
+def read_color(path: str | os.PathLike) -> np.ndarray:
+    """(H, W, 3) uint8 RGB from any image cv2 reads (grey is replicated, alpha dropped)."""
+    import cv2
+
+    img = _imread(Path(path), "colour")
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    if img.dtype != np.uint8:
+        raise InputError(f"{path}: colour image must be 8- or 16-bit, got {img.dtype}")
+    if img.ndim == 2:
+        return np.repeat(img[:, :, None], 3, axis=2)
+    if img.shape[2] == 4:
+        img = img[:, :, :3]
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def read_depth(path: str | os.PathLike, depth_format: str = "auto",
+               depth_scale: float = 1000.0) -> np.ndarray:
+    """(H, W) float depth in metres (0 = no reading) from any supported encoding.
+
+    Parameters
+    ----------
+    path : depth file
+    depth_format : one of :data:`DEPTH_FORMATS`; ``auto`` picks ``float32-dat`` for
+        ``.dat`` and ``png`` (integer image / ``depth_scale``) otherwise.
+    depth_scale : raw units per metre for ``png`` (1000 mm, 5000 TUM).
+    """
+    path = Path(path)
+    if depth_format not in DEPTH_FORMATS:
+        raise InputError(f"--depth-format {depth_format!r}: expected one of {', '.join(DEPTH_FORMATS)}")
+    if depth_format == "auto":
+        depth_format = "float32-dat" if path.suffix.lower() == ".dat" else "png"
+    if depth_format == "float32-dat":
+        return _read_dat(path)
+    raw = _imread(path, "depth")
+    if raw.ndim == 3:
+        raise InputError(f"{path}: depth must be a single-channel 16-bit image, got {raw.shape[2]} "
+                         "channels (is this the colour image?)")
+    if raw.dtype != np.uint16:
+        raise InputError(f"{path}: depth must be 16-bit (got {raw.dtype}); 8-bit depth loses "
+                         "the range")
+    if depth_format == "png":
+        if not (depth_scale > 0 and np.isfinite(depth_scale)):
+            raise InputError(f"--depth-scale {depth_scale}: must be a positive number")
+        return raw.astype(np.float64) / depth_scale
+    if depth_format == "sun-bitrot":
+        mm = (raw >> 3) | (raw << 13)
+        return mm.astype(np.float64) / 1000.0
+    # nyu-disparity: cv2 reads PGM big-endian per spec; NYU wrote it little-endian.
+    disp = raw.byteswap().astype(np.float64)
+    with np.errstate(divide="ignore"):
+        d = 351.3 / (1092.5 - disp)
+    d[(disp >= 2047) | ~np.isfinite(d) | (d <= 0) | (d > 15)] = 0.0
+    return d
+
+
+def _read_dat(path: Path) -> np.ndarray:
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    if len(data) < 8:
+        raise InputError(f"{path}: too short for a float32 depth .dat (int32 rows, cols, floats)")
+    rows, cols = struct.unpack("<ii", data[:8])
+    if rows <= 0 or cols <= 0 or len(data) != 8 + 4 * rows * cols:
+        raise InputError(f"{path}: header says {rows}x{cols} but the file has {len(data)} bytes; "
+                         "expected int32 rows, int32 cols, rows*cols float32")
+    d = np.frombuffer(data, dtype="<f4", offset=8).reshape(rows, cols).astype(np.float64)
+    d[~np.isfinite(d) | (d < 0)] = 0.0
+    return d
+
+
+def parse_intrinsics(text: str, width: int, height: int) -> Intrinsics:
+    """``"fx,fy,cx,cy"`` (or a path to an intrinsics.json) -> validated :class:`Intrinsics`."""
+    p = Path(text)
+    if p.suffix == ".json" or p.is_file():
+        intr = read_intrinsics(p)
+        return intr
+    parts = re.split(r"[,\s]+", text.strip())
+    try:
+        vals = [float(x) for x in parts]
+    except ValueError:
+        vals = []
+    if len(vals) != 4:
+        raise InputError(f"--intrinsics {text!r}: expected fx,fy,cx,cy (4 numbers) or a .json file")
+    return Intrinsics.from_json({"width": width, "height": height, "fx": vals[0], "fy": vals[1],
+                                 "cx": vals[2], "cy": vals[3]}, "--intrinsics")
+
+
+# ------------------------------------------------------------------------------ RGB-D frame
+def from_rgbd(color: np.ndarray | None, depth: np.ndarray, intr: Intrinsics, *,
+              T_world_cam: np.ndarray | None = None, instance_image: np.ndarray | None = None,
+              scribbles: np.ndarray | None = None, up: np.ndarray | None = None,
+              source: str = "", max_depth: float | None = None) -> ScanInput:
+    """Build a :class:`ScanInput` from an RGB-D frame (depth metres, 0 = none)."""
+    H, W = depth.shape
+    if color is not None and color.shape[:2] != (H, W):
+        raise InputError(f"{source}: colour is {color.shape[1]}x{color.shape[0]} but depth is "
+                         f"{W}x{H}; they must be registered at the same size")
+    if (intr.width, intr.height) != (W, H):
+        raise InputError(f"{source}: intrinsics are for {intr.width}x{intr.height} but depth is "
+                         f"{W}x{H}")
+    for name, img in (("instance", instance_image), ("scribbles", scribbles)):
+        if img is not None and img.shape[:2] != (H, W):
+            raise InputError(f"{source}: {name} image is {img.shape[1]}x{img.shape[0]} but depth "
+                             f"is {W}x{H}")
+    d = np.where(np.isfinite(depth), depth, 0.0)
+    if max_depth is not None:
+        d = np.where(d > max_depth, 0.0, d)
+    pts, pix = backproject(d, intr)
+    if len(pts) == 0:
+        raise InputError(f"{source}: the depth image has no valid reading (all zero/NaN); wrong "
+                         "--depth-format or --depth-scale?")
+    colors = color[pix[:, 0], pix[:, 1]].astype(np.float64) / 255.0 if color is not None else None
+    inst = (instance_image[pix[:, 0], pix[:, 1]].astype(np.int64)
+            if instance_image is not None else None)
+    return ScanInput(points=pts, colors=colors, instance=inst, pixels=pix, image=color, depth=d,
+                     intrinsics=intr, T_world_cam=T_world_cam, scribbles=scribbles,
+                     instance_image=instance_image, up=up, source=source)
+
+
+# ------------------------------------------------------------------------------------- PLY
+_PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2",
+              "int16": "i2", "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4",
+              "uint": "u4", "uint32": "u4", "float": "f4", "float32": "f4", "double": "f8",
+              "float64": "f8"}
+
+
+def read_ply(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Vertex properties of a PLY (ascii / binary little / big endian) as ``name -> (n,)``."""
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    end = data.find(b"end_header")
+    if not data.startswith(b"ply") or end < 0:
+        raise InputError(f"{path}: not a PLY file (no 'ply' magic / end_header)")
+    body = data.index(b"\n", end) + 1
+    header = data[:end].decode("ascii", "replace").splitlines()
+    fmt, elements, current = None, [], None
+    for line in header:
+        tok = line.split()
+        if not tok:
+            continue
+        if tok[0] == "format":
+            fmt = tok[1]
+        elif tok[0] == "element":
+            current = [tok[1], int(tok[2]), []]
+            elements.append(current)
+        elif tok[0] == "property" and current is not None:
+            if tok[1] == "list":
+                if current[0] == "vertex":
+                    raise InputError(f"{path}: list properties on vertices are not supported")
+                current[2].append(("__list__", tok[2], tok[3]))
+            else:
+                if tok[1] not in _PLY_TYPES:
+                    raise InputError(f"{path}: unknown PLY property type {tok[1]!r}")
+                current[2].append((tok[2], _PLY_TYPES[tok[1]]))
+    if not elements or elements[0][0] != "vertex":
+        raise InputError(f"{path}: PLY has no leading 'vertex' element")
+    name, n, props = elements[0]
+    if fmt == "ascii":
+        text = data[body:].decode("ascii", "replace").split("\n")[:n]
+        try:
+            arr = np.array([r.split()[: len(props)] for r in text], dtype=np.float64)
+        except ValueError:
+            raise InputError(f"{path}: malformed ASCII PLY vertex rows") from None
+        if arr.shape != (n, len(props)):
+            raise InputError(f"{path}: expected {n} vertex rows of {len(props)} values")
+        return {p[0]: arr[:, i] for i, p in enumerate(props)}
+    if fmt not in ("binary_little_endian", "binary_big_endian"):
+        raise InputError(f"{path}: unknown PLY format {fmt!r}")
+    bo = "<" if fmt == "binary_little_endian" else ">"
+    dt = np.dtype([(p[0], bo + p[1]) for p in props])
+    if len(data) - body < n * dt.itemsize:
+        raise InputError(f"{path}: truncated PLY ({n} vertices announced)")
+    rec = np.frombuffer(data, dtype=dt, count=n, offset=body)
+    return {p[0]: rec[p[0]].astype(np.float64) for p in props}
+
+
+# ------------------------------------------------------------------------------------- PCD
+def lzf_decompress(src: bytes, size: int) -> bytes:
+    """Decompress LibLZF data (the codec of PCD ``binary_compressed``) to ``size`` bytes."""
+    out = bytearray(size)
+    ip, op, n = 0, 0, len(src)
+    while ip < n:
+        ctrl = src[ip]
+        ip += 1
+        if ctrl < 32:  # literal run of ctrl + 1 bytes
+            ln = ctrl + 1
+            out[op:op + ln] = src[ip:ip + ln]
+            ip += ln
+            op += ln
+        else:  # back reference
+            ln = ctrl >> 5
+            ref = op - ((ctrl & 0x1F) << 8) - 1
+            if ln == 7:
+                ln += src[ip]
+                ip += 1
+            ref -= src[ip]
+            ip += 1
+            ln += 2
+            if ref < 0:
+                raise ValueError("corrupt LZF stream")
+            if op - ref >= ln:
+                out[op:op + ln] = out[ref:ref + ln]
+            else:  # overlapping copy repeats the period
+                period = bytes(out[ref:op])
+                rep = (period * (ln // len(period) + 1))[:ln]
+                out[op:op + ln] = rep
+            op += ln
+    if op != size:
+        raise ValueError(f"LZF stream gave {op} bytes, header says {size}")
+    return bytes(out)
+
+
+def read_pcd(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], int, int]:
+    """Fields of a PCD v0.7 file (ascii / binary / binary_compressed).
+
+    Returns
+    -------
+    fields : dict name -> (n,) or (n, count) array in the stored dtype
+    width, height : int (height > 1 means an organised cloud)
+    """
+    path = Path(path)
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    hdr: dict[str, list[str]] = {}
+    pos = 0
+    while True:
+        nl = data.find(b"\n", pos)
+        if nl < 0:
+            raise InputError(f"{path}: PCD header has no DATA line")
+        line = data[pos:nl].decode("ascii", "replace").strip()
+        pos = nl + 1
+        if not line or line.startswith("#"):
+            continue
+        tok = line.split()
+        hdr[tok[0].upper()] = tok[1:]
+        if tok[0].upper() == "DATA":
+            break
+    try:
+        names = hdr["FIELDS"]
+        sizes = [int(s) for s in hdr["SIZE"]]
+        types = hdr["TYPE"]
+        counts = [int(c) for c in hdr.get("COUNT", ["1"] * len(names))]
+        width, height = int(hdr["WIDTH"][0]), int(hdr.get("HEIGHT", ["1"])[0])
+        npts = int(hdr.get("POINTS", [str(width * height)])[0])
+        mode = hdr["DATA"][0].lower()
+    except (KeyError, ValueError, IndexError):
+        raise InputError(f"{path}: malformed PCD header (FIELDS/SIZE/TYPE/WIDTH/DATA)") from None
+    dts = [np.dtype({"F": "f", "U": "u", "I": "i"}[t.upper()] + str(s)).newbyteorder("<")
+           for t, s in zip(types, sizes, strict=True)]
+    fields: dict[str, np.ndarray] = {}
+    if mode == "ascii":
+        txt = data[pos:].decode("ascii", "replace").split()
+        ncol = sum(counts)
+        try:
+            arr = np.array(txt[: npts * ncol], dtype=np.float64).reshape(npts, ncol)
+        except ValueError:
+            raise InputError(f"{path}: malformed ASCII PCD data ({npts} points announced)") from None
+        col = 0
+        for nm, dt, c in zip(names, dts, counts, strict=True):
+            vals = arr[:, col:col + c]
+            fields[nm] = (vals[:, 0] if c == 1 else vals).astype(dt) if dt.kind != "f" else (
+                vals[:, 0] if c == 1 else vals)
+            col += c
+    elif mode == "binary":
+        rec_dt = np.dtype([(nm, dt, (c,)) if c > 1 else (nm, dt)
+                           for nm, dt, c in zip(names, dts, counts, strict=True)])
+        if len(data) - pos < npts * rec_dt.itemsize:
+            raise InputError(f"{path}: truncated binary PCD")
+        rec = np.frombuffer(data, dtype=rec_dt, count=npts, offset=pos)
+        fields = {nm: np.array(rec[nm]) for nm in names}
+    elif mode == "binary_compressed":
+        csize, usize = struct.unpack("<II", data[pos:pos + 8])
+        try:
+            raw = lzf_decompress(data[pos + 8:pos + 8 + csize], usize)
+        except (ValueError, IndexError):
+            raise InputError(f"{path}: corrupt binary_compressed PCD data") from None
+        off = 0
+        for nm, dt, c in zip(names, dts, counts, strict=True):
+            nbytes = npts * dt.itemsize * c
+            vals = np.frombuffer(raw, dtype=dt, count=npts * c, offset=off)
+            fields[nm] = vals.reshape(npts, c) if c > 1 else vals.copy()
+            off += nbytes
+    else:
+        raise InputError(f"{path}: unknown PCD DATA mode {mode!r}")
+    return fields, width, height
+
+
+def _unpack_rgb(v: np.ndarray) -> np.ndarray:
+    """PCD packed rgb/rgba (float32 or uint32 bits, 0x00RRGGBB) -> (n, 3) float in [0, 1]."""
+    u = np.ascontiguousarray(v).view(np.uint32) if v.dtype.itemsize == 4 else v.astype(np.uint32)
+    return np.stack([(u >> 16) & 255, (u >> 8) & 255, u & 255], axis=1).astype(np.float64) / 255.0
+
+
+# ------------------------------------------------------------------------------- the clouds
+def load_cloud(path: str | os.PathLike, *, intrinsics: str | None = None,
+               up: np.ndarray | None = None, label_divisor: int = 0,
+               rng: np.random.Generator | None = None) -> ScanInput:
+    """Load a ``.ply`` / ``.pcd`` / ``.npz`` point cloud.
+
+    ``label_divisor`` > 0 maps PCD labels to object ids as ``label // label_divisor``
+    (mOSD: 10); 0 means auto (10 when labels reach 20 or more and come in decades, as in
+    mOSD, else the label itself).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"{path}: no such file")
+    suffix = path.suffix.lower()
+    colors = inst = None
+    width = height = 1
+    if suffix == ".ply":
+        f = read_ply(path)
+        if not {"x", "y", "z"} <= f.keys():
+            raise InputError(f"{path}: PLY vertices need x, y, z properties")
+        pts = np.stack([f["x"], f["y"], f["z"]], axis=1)
+        if {"red", "green", "blue"} <= f.keys():
+            c = np.stack([f["red"], f["green"], f["blue"]], axis=1)
+            colors = c / (255.0 if c.max(initial=0) > 1.0 else 1.0)
+        for key in ("instance", "instance_id", "label", "segment"):
+            if key in f:
+                inst = f[key].astype(np.int64)
+                break
+    elif suffix == ".pcd":
+        f, width, height = read_pcd(path)
+        if not {"x", "y", "z"} <= f.keys():
+            raise InputError(f"{path}: PCD needs x, y, z fields")
+        pts = np.stack([f["x"], f["y"], f["z"]], axis=1).astype(np.float64)
+        for key in ("rgb", "rgba"):
+            if key in f:
+                colors = _unpack_rgb(f[key])
+        if "label" in f:
+            lab = f["label"].astype(np.int64)
+            div = label_divisor
+            if div == 0:
+                div = 10 if lab.max(initial=0) >= 20 else 1
+            inst = lab // div
+    elif suffix == ".npz":
+        try:
+            z = np.load(path)
+            pc = np.asarray(z["pc"] if "pc" in z else z[z.files[0]], dtype=np.float64)
+        except (OSError, ValueError, KeyError, IndexError):
+            raise InputError(f"{path}: cannot read a point array from this .npz") from None
+        if pc.ndim != 2 or pc.shape[1] < 3:
+            raise InputError(f"{path}: expected an (N, 3) or (N, 6) array, got {pc.shape}")
+        pts = pc[:, :3]
+        if pc.shape[1] >= 6:
+            colors = np.clip(pc[:, 3:6] / (255.0 if pc[:, 3:6].max() > 1.0 else 1.0), 0, 1)
+        if up is None:
+            up = np.array([0.0, 0.0, 1.0])  # SUN RGB-D upright coordinates
+    else:
+        raise InputError(f"{path}: unknown point-cloud type {suffix!r} (expected .ply, .pcd, .npz)")
+
+    finite = np.all(np.isfinite(pts), axis=1)
+    if not finite.any():
+        raise InputError(f"{path}: the cloud has no finite point (empty or all NaN)")
+
+    if height > 1 and suffix == ".pcd" and finite.sum() > 100:
+        # Organised cloud: rebuild the RGB-D frame so overlays and visibility work.
+        intr = (parse_intrinsics(intrinsics, width, height) if intrinsics
+                else Intrinsics(width, height, 525.0 * width / 640, 525.0 * width / 640,
+                                (width - 1) / 2, (height - 1) / 2))
+        zz = np.where(finite, pts[:, 2], 0.0).reshape(height, width)
+        img = None
+        if colors is not None:
+            img = (np.where(finite[:, None], colors, 0) * 255 + 0.5).astype(np.uint8).reshape(
+                height, width, 3)
+        inst_img = inst.reshape(height, width) if inst is not None else None
+        scan = from_rgbd(img, zz, intr, instance_image=inst_img, up=up, source=str(path))
+        return scan
+
+    pts = pts[finite]
+    colors = colors[finite] if colors is not None else None
+    inst = inst[finite] if inst is not None else None
+    notes = []
+    if len(pts) > MAX_POINTS:
+        pts, colors, inst = downsample(pts, colors, inst, MAX_POINTS)
+        notes.append(f"downsampled {int(finite.sum())} -> {len(pts)} points")
+    return ScanInput(points=pts, colors=colors, instance=inst, up=up, source=str(path),
+                     notes=notes)
+
+
+def downsample(points: np.ndarray, colors: np.ndarray | None, inst: np.ndarray | None,
+               target: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Voxel-grid downsample to about ``target`` points (first point per voxel, deterministic)."""
+    lo, hi = points.min(0), points.max(0)
+    ext = np.maximum(hi - lo, 1e-9)
+    cell = float(np.prod(ext) / target) ** (1 / 3)
+    keep = None
+    for _ in range(8):
+        key = np.floor((points - lo) / cell).astype(np.int64)
+        dims = key.max(0) + 1
+        flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
+        _, first = np.unique(flat, return_index=True)
+        keep = np.sort(first)
+        if len(keep) <= target:
+            break
+        cell *= (len(keep) / target) ** 0.5
+    assert keep is not None
+    return (points[keep], colors[keep] if colors is not None else None,
+            inst[keep] if inst is not None else None)
+
+
+# ------------------------------------------------------------------------------ entry point
+def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str | None = None,
+              intrinsics: str | None = None, depth_format: str = "auto",
+              depth_scale: float = 1000.0, up: str | np.ndarray | None = None,
+              max_depth: float | None = None, instance: str | None = None,
+              scribbles: str | None = None) -> ScanInput:
+    """Load any supported input (scene dir, RGB-D folder, single depth file, cloud).
+
+    ``color``/``depth``/``instance``/``scribbles`` are file names, relative to a folder
+    ``path`` or absolute; ``intrinsics`` is ``"fx,fy,cx,cy"`` or a JSON file.
+    """
+    path = Path(path)
+    up_vec = parse_up(up) if isinstance(up, str) else (None if up is None else np.asarray(up, float))
+    if not path.exists():
+        raise InputError(f"{path}: no such file or folder")
+    if path.is_file():
+        if path.suffix.lower() in (".ply", ".pcd", ".npz"):
+            return load_cloud(path, intrinsics=intrinsics, up=up_vec)
+        # a single depth image / .dat file: its folder is the frame folder
+        depth = str(path) if depth is None else depth
+        path = path.parent
+    folder = path / "scan" if (path / "scan").is_dir() and depth is None else path
+
+    def resolve(name: str | None, default: str | None) -> Path | None:
+        if name is None:
+            if default is None:
+                return None
+            p = folder / default
+            return p if p.exists() else None
+        p = Path(name)
+        return p if p.is_absolute() or p.exists() else folder / name
+
+    depth_p = resolve(depth, "depth.png")
+    if depth_p is None:
+        clouds = sorted(folder.glob("*.ply")) + sorted(folder.glob("*.pcd"))
+        if clouds and not (folder / "color.png").exists():
+            return load_cloud(clouds[0], intrinsics=intrinsics, up=up_vec)
+        raise InputError(f"{folder}: no depth.png here (give --depth FILE, or a .ply/.pcd cloud)")
+    d = read_depth(depth_p, depth_format, depth_scale)
+    H, W = d.shape
+    color_p = resolve(color, "color.png")
+    img = read_color(color_p) if color_p is not None else None
+    if intrinsics is not None:
+        intr = parse_intrinsics(intrinsics, W, H)
+    elif (folder / "intrinsics.json").exists():
+        intr = read_intrinsics(folder / "intrinsics.json")
+    else:
+        raise InputError(f"{folder}: intrinsics.json missing; give --intrinsics fx,fy,cx,cy "
+                         "(Kinect v1 default: 525,525,319.5,239.5)")
+    pose = read_pose(folder / "camera_pose.json") if (folder / "camera_pose.json").exists() else None
+    inst_p = resolve(instance, "instance.png")
+    inst_img = _imread(inst_p, "instance").astype(np.int64) if inst_p is not None else None
+    if inst_img is not None and inst_img.ndim == 3:
+        raise InputError(f"{inst_p}: instance image must be single-channel ids")
+    scr_p = resolve(scribbles, "scribbles.png")
+    scr = None
+    if scr_p is not None:
+        s = _imread(scr_p, "scribbles")
+        if s.ndim == 3:  # colour strokes: one id per distinct colour
+            flat = s[:, :, :3].reshape(-1, 3).astype(np.int64)
+            code = (flat[:, 0] << 16) | (flat[:, 1] << 8) | flat[:, 2]
+            _, ids = np.unique(code, return_inverse=True)
+            bg = ids[np.argmin(code)] if (code == 0).any() else -1
+            ids = np.where(ids == bg, 0, ids + (1 if bg < 0 else 0))
+            scr = ids.reshape(s.shape[:2])
+        else:
+            scr = s.astype(np.int64)
+    scan = from_rgbd(img, d, intr, T_world_cam=pose, instance_image=inst_img, scribbles=scr,
+                     up=up_vec, source=str(depth_p), max_depth=max_depth)
+    scene_json = folder.parent / "scene.json" if folder.name == "scan" else None
+    if scene_json is not None and scene_json.is_file() and inst_img is not None:
+        data = read_json(scene_json)
+        cubs = data.get("cuboids", []) if isinstance(data, dict) else []
+        names = {k + 1: str(c.get("object") or c.get("id", k)) for k, c in enumerate(cubs)
+                 if isinstance(c, dict)}
+        scan = replace(scan, instance_objects=names)
+    return scan
+
+
+def parse_up(text: str) -> np.ndarray:
+    """``"0,-1,0"`` or ``+y``/``-y``/``z``... -> unit (3,) vector in the input frame."""
+    t = text.strip().lower()
+    axes = {"x": 0, "y": 1, "z": 2}
+    if t.lstrip("+-") in axes:
+        v = np.zeros(3)
+        v[axes[t.lstrip("+-")]] = -1.0 if t.startswith("-") else 1.0
+        return v
+    try:
+        v = np.array([float(x) for x in re.split(r"[,\s]+", t)], dtype=float)
+    except ValueError:
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
+        raise InputError(f"--up {text!r}: expected a direction such as -y or 0,-1,0")
+    return v / np.linalg.norm(v)
+
+
+def read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f"{path}: cannot read JSON ({exc})") from None

@@ -1,0 +1,177 @@
+"""Objects out of the non-plane points: instance labels, scribbles + GrabCut, or clustering.
+
+Priority: per-point instance ids from the input (``instance.png``, PCD ``label``) are
+used as they are; scribbled objects are cut out of the colour-and-depth image by
+GrabCut; whatever is left is clustered by proximity (Open3D DBSCAN on a voxel grid).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Depth jump, relative to depth, that marks a pixel as a flying pixel at an edge.
+FLYING_REL_JUMP = 0.04
+
+
+def flying_pixels(depth: np.ndarray, rel: float = FLYING_REL_JUMP) -> np.ndarray:
+    """(H, W) bool: pixels whose depth jumps by more than ``rel * depth`` to both sides
+    along a row or a column (mixed pixels at silhouettes), or next to a hole."""
+    d = np.asarray(depth, float)
+    pad = np.pad(d, 1, mode="edge")
+    c = pad[1:-1, 1:-1]
+    thr = rel * np.maximum(c, 1e-6)
+    left, right = pad[1:-1, :-2], pad[1:-1, 2:]
+    up, down = pad[:-2, 1:-1], pad[2:, 1:-1]
+    jump_h = (np.abs(c - left) > thr) & (np.abs(c - right) > thr)
+    jump_v = (np.abs(c - up) > thr) & (np.abs(c - down) > thr)
+    return (jump_h | jump_v) & (c > 0)
+
+
+def voxel_keys(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Voxel-grid the points: (representative mean per voxel (m, 3), inverse (n,))."""
+    key = np.floor((points - points.min(0)) / cell).astype(np.int64)
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.ravel()
+    m = int(inv.max()) + 1
+    cnt = np.bincount(inv, minlength=m).astype(float)
+    rep = np.stack([np.bincount(inv, points[:, k], minlength=m) for k in range(3)], 1) / cnt[:, None]
+    return rep, inv
+
+
+def cluster(points: np.ndarray, cell: float, eps_cells: float = 2.6,
+            min_voxels: int = 3) -> np.ndarray:
+    """Proximity clusters of ``points (n, 3)``: (n,) int labels 0..K-1, -1 noise.
+
+    Points are gridded at ``cell``; Open3D DBSCAN with ``eps = eps_cells * cell`` runs on
+    the voxel means and the labels go back to every point.
+    """
+    import open3d as o3d
+
+    if len(points) == 0:
+        return np.zeros(0, dtype=np.int64)
+    rep, inv = voxel_keys(points, cell)
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(rep))
+    lab = np.asarray(pc.cluster_dbscan(eps=eps_cells * cell, min_points=min_voxels), dtype=np.int64)
+    lab = _canonical(lab)
+    return lab[inv]
+
+
+def _canonical(lab: np.ndarray) -> np.ndarray:
+    """Relabel clusters by decreasing size (ties by first index) so output is deterministic."""
+    valid = lab >= 0
+    if not valid.any():
+        return lab
+    ids, first, counts = np.unique(lab[valid], return_index=True, return_counts=True)
+    order = np.lexsort((first, -counts))
+    remap = np.full(int(ids.max()) + 1, -1, dtype=np.int64)
+    remap[ids[order]] = np.arange(len(ids))
+    out = lab.copy()
+    out[valid] = remap[lab[valid]]
+    return out
+
+
+def depth_augmented(image: np.ndarray, depth: np.ndarray) -> np.ndarray:
+    """(H, W, 3) uint8: colour with a third of each channel replaced by normalised depth,
+    so GrabCut's colour models also see depth steps."""
+    d = np.asarray(depth, float)
+    valid = d > 0
+    if valid.any():
+        lo, hi = np.percentile(d[valid], [1, 99])
+        dn = np.clip((d - lo) / max(hi - lo, 1e-6), 0, 1) * 255
+    else:
+        dn = np.zeros_like(d)
+    return (image.astype(float) * (2 / 3) + dn[:, :, None] / 3).astype(np.uint8)
+
+
+def grabcut_scribbles(image: np.ndarray, depth: np.ndarray, scribbles: np.ndarray,
+                      allowed: np.ndarray, iterations: int = 4) -> np.ndarray:
+    """Split touching objects from user strokes.
+
+    Parameters
+    ----------
+    image : (H, W, 3) uint8 RGB
+    depth : (H, W) float, metres
+    scribbles : (H, W) int, stroke id per pixel (0 = none)
+    allowed : (H, W) bool, pixels that may belong to an object (not a plane, valid depth)
+
+    Returns
+    -------
+    labels : (H, W) int, the stroke id owning each pixel (0 = none)
+    """
+    import cv2
+
+    aug = cv2.cvtColor(depth_augmented(image, depth), cv2.COLOR_RGB2BGR)
+    ids = [int(i) for i in np.unique(scribbles) if i != 0]
+    out = np.zeros(scribbles.shape, dtype=np.int64)
+    prob = np.zeros(scribbles.shape, dtype=float)
+    for k in ids:
+        mask = np.where(allowed, cv2.GC_PR_BGD, cv2.GC_BGD).astype(np.uint8)
+        mine = scribbles == k
+        near = cv2.dilate(mine.astype(np.uint8), np.ones((41, 41), np.uint8)) > 0
+        mask[near & allowed] = cv2.GC_PR_FGD
+        mask[(scribbles != 0) & ~mine] = cv2.GC_BGD
+        mask[mine] = cv2.GC_FGD
+        bgd, fgd = np.zeros((1, 65), np.float64), np.zeros((1, 65), np.float64)
+        cv2.grabCut(aug, mask, None, bgd, fgd, iterations, cv2.GC_INIT_WITH_MASK)
+        fg = (mask == cv2.GC_FGD) | (mask == cv2.GC_PR_FGD)
+        # keep the connected part that holds the stroke
+        n, comp = cv2.connectedComponents(fg.astype(np.uint8), connectivity=8)
+        keep = np.unique(comp[mine & fg])
+        fg &= np.isin(comp, keep[keep > 0])
+        dist = cv2.distanceTransform(fg.astype(np.uint8), cv2.DIST_L2, 3)
+        take = fg & (dist > prob)
+        out[take] = k
+        prob[take] = dist[take]
+    return out
+
+
+def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
+                    instance: np.ndarray | None = None,
+                    pixels: np.ndarray | None = None,
+                    scribble_labels: np.ndarray | None = None,
+                    min_points: int = 30) -> tuple[np.ndarray, list[str]]:
+    """Assign every object point an object index.
+
+    Parameters
+    ----------
+    world : (n, 3) float
+    object_mask : (n,) bool, points that may belong to objects (not planes, not flying)
+    cell : float, voxel size for clustering
+    instance : (n,) int or None, given ids (0 = none)
+    pixels : (n, 2) int or None, (v, u) per point (for scribble labels)
+    scribble_labels : (H, W) int or None, GrabCut output
+
+    Returns
+    -------
+    labels : (n,) int, object index 0..K-1 or -1
+    names : list of str, per object: ``inst<k>``, ``scribble<k>`` or ``cluster<k>``
+    """
+    n = len(world)
+    labels = np.full(n, -1, dtype=np.int64)
+    names: list[str] = []
+    todo = object_mask.copy()
+    if instance is not None and np.any(instance[object_mask] > 0):
+        ids = np.unique(instance[object_mask & (instance > 0)])
+        for i in ids:
+            sel = object_mask & (instance == i)
+            if sel.sum() >= min_points:
+                labels[sel] = len(names)
+                names.append(f"inst{int(i)}")
+        return labels, names
+    if scribble_labels is not None and pixels is not None:
+        sl = scribble_labels[pixels[:, 0], pixels[:, 1]]
+        for i in np.unique(sl[object_mask & (sl > 0)]):
+            sel = object_mask & (sl == i)
+            if sel.sum() >= min_points:
+                labels[sel] = len(names)
+                names.append(f"scribble{int(i)}")
+            todo &= ~sel
+    idx = np.nonzero(todo)[0]
+    if len(idx):
+        lab = cluster(world[idx], cell)
+        if (lab >= 0).any():
+            counts = np.bincount(lab[lab >= 0])
+            for c in np.nonzero(counts >= min_points)[0]:
+                labels[idx[lab == c]] = len(names)
+                names.append(f"cluster{len(names)}")
+    return labels, names
