@@ -236,3 +236,16 @@ def test_validity_table_seeds_0_19(name):
     bad = [r for r in rows if not (r["contacts_ok"] and r["analytic"] and r["mujoco"]
                                    and r["pybullet"])]
     assert not bad, bad
+
+
+def test_validate_family_rows_and_table():
+    pytest.importorskip("pybullet")
+    from synth_scenes.truth import validate_family, validity_table
+
+    rows = validate_family("chair", range(2))
+    assert [r["seed"] for r in rows] == [0, 1]
+    for r in rows:
+        assert r["contacts_ok"] and r["analytic"] and r["mujoco"] and r["pybullet"]
+        assert 6 <= r["cuboids"] <= 8 and r["objects"] == 1 and r["attempts"] >= 1
+    table = validity_table(rows)
+    assert "| chair | 0-1 | " in table and "| 2/2 | 2/2 | 2/2 |" in table
