@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import colorsys
 import os
+import threading
 
 import numpy as np
 
@@ -223,12 +224,13 @@ class _Pool:
         self.renderer.close()
 
 
-#: Process-wide pools, keyed by (pid, width, height): one GL context per image size.
-_POOLS: dict[tuple[int, int, int], _Pool] = {}
+#: Pools keyed by (pid, thread, width, height): a GL context is current in one thread
+#: only, and a forked child must not use its parent's.
+_POOLS: dict[tuple[int, int, int, int], _Pool] = {}
 
 
 def _get_pool(n_boxes: int, width: int, height: int) -> _Pool:
-    key = (os.getpid(), width, height)
+    key = (os.getpid(), threading.get_ident(), width, height)
     pool = _POOLS.get(key)
     if pool is None or pool.capacity < n_boxes:
         if pool is not None:
