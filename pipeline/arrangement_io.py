@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from pathlib import Path
 from typing import Any
 
@@ -269,9 +270,16 @@ def _jsonable(obj: Any) -> Any:
     return obj
 
 
+_NUMBER_LIST = re.compile(r"\[\s*((?:-?[0-9.eE+-]+,\s*)*-?[0-9.eE+-]+)\s*\]")
+_LIST_OF_LISTS = re.compile(r"\[\s*((?:\[[^\[\]]*\],\s*)*\[[^\[\]]*\])\s*\]")
+
+
 def dumps(arr: Arrangement) -> str:
-    """The file text: stable key order, one cuboid per line block, trailing newline."""
-    return json.dumps(arrangement_to_dict(arr), indent=1, allow_nan=False) + "\n"
+    """The file text: stable key order, vectors and matrices on one line, trailing newline."""
+    text = json.dumps(arrangement_to_dict(arr), indent=1, allow_nan=False)
+    text = _NUMBER_LIST.sub(lambda m: "[" + " ".join(m.group(1).split()) + "]", text)
+    text = _LIST_OF_LISTS.sub(lambda m: "[" + " ".join(m.group(1).split()) + "]", text)
+    return text + "\n"
 
 
 def write_arrangement(arr: Arrangement, path: str | os.PathLike) -> None:

@@ -1,0 +1,360 @@
+"""Contact geometry: which boxes touch, and over which interface polygon.
+
+For every pair of oriented boxes, and every box against every support plane, decide
+whether they touch within a tolerance relative to the boxes' size, and if so return
+the interface polygon (1 vertex for a corner contact, 2 for an edge, up to 8 for two
+overlapping faces at any relative yaw), its normal and tangent frame.  Pairs that
+overlap by more than the tolerance are reported as interpenetrating (not contacts).
+
+Method
+------
+*Broad phase*: axis-aligned bounds inflated by the tolerance, all pairs tested at
+once with numpy broadcasting (no Python loop over pairs).
+
+*Narrow phase*: the separating axis theorem over the 15 candidate axes (3 face
+normals of each box and the 9 edge cross products), vectorised over all candidate
+pairs.  ``s = max_L (|d.L| - r_A(L) - r_B(L))`` is the signed separation (negative:
+overlap depth along the best axis).  ``|s| <= tol`` means touching; face axes are
+preferred over edge axes when both are within tolerance, so a face resting on a face
+is reported as a face contact.
+
+*Interface*: along the contact normal ``n`` the touching feature of each box is the
+set of its corners within ``tol`` of its extreme (1, 2 or 4 corners).  Both features
+are projected on the plane orthogonal to ``n`` and intersected with shapely
+(vectorised over all pairs); when float noise makes a touching pair miss (a corner on
+an edge), the feature of A is grown by ``tol`` and the result collapsed to its centre.
+Interface vertices lie on the plane midway between the two features.
+
+Conventions: a contact is stored with ``a`` always a cuboid and ``b`` a cuboid or a
+support; the ``normal`` points from ``b`` into ``a`` (the direction in which ``b``
+pushes ``a``).  Node indices: cuboids are ``0..K-1``, supports ``K..K+S-1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .constants import CONTACT_ABS_TOL, CONTACT_REL_TOL
+from .model import CORNER_SIGNS, Arrangement, box_corners
+
+
+@dataclass(frozen=True)
+class ContactSet:
+    """All contacts of an arrangement, struct-of-arrays.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Node names: the cuboid ids followed by the support ids.
+    n_cuboids : int
+    a, b : (M,) int
+        Node indices of each contact (``a`` a cuboid, ``b`` a cuboid or support, a < b
+        when both are cuboids).
+    normal : (M, 3) float
+        Unit normal pointing from ``b`` into ``a``.
+    tangent_u, tangent_v : (M, 3) float
+        Tangent frame, ``(u, v, normal)`` right-handed.
+    vertices : (V, 3) float
+        Interface polygon vertices of all contacts, concatenated.
+    vertex_contact : (V,) int
+        The contact each vertex belongs to (sorted ascending).
+    gap : (M,) float
+        Signed separation at the contact (negative: slight overlap within tolerance).
+    penetrations : tuple of (str, str, float)
+        Pairs overlapping by more than the tolerance, with the depth in metres.
+    """
+
+    names: tuple[str, ...]
+    n_cuboids: int
+    a: np.ndarray
+    b: np.ndarray
+    normal: np.ndarray
+    tangent_u: np.ndarray
+    tangent_v: np.ndarray
+    vertices: np.ndarray
+    vertex_contact: np.ndarray
+    gap: np.ndarray
+    penetrations: tuple[tuple[str, str, float], ...]
+
+    @property
+    def count(self) -> int:
+        """Number of contacts."""
+        return int(len(self.a))
+
+    @property
+    def n_vertices(self) -> np.ndarray:
+        """(M,) int, interface vertices per contact (1 corner, 2 edge, >= 3 face)."""
+        return np.bincount(self.vertex_contact, minlength=self.count)
+
+    @property
+    def pairs(self) -> list[tuple[str, str]]:
+        """The touching pairs as (name_a, name_b)."""
+        return [(self.names[i], self.names[j]) for i, j in zip(self.a.tolist(), self.b.tolist())]
+
+    def polygon(self, m: int) -> np.ndarray:
+        """(k, 3) vertices of contact ``m``."""
+        return self.vertices[self.vertex_contact == m]
+
+    def lookup(self) -> dict[tuple[str, str], int]:
+        """Unordered name pair (sorted) -> contact index."""
+        out = {}
+        for m, (x, y) in enumerate(self.pairs):
+            out[(x, y) if x <= y else (y, x)] = m
+        return out
+
+
+def tangent_frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Right-handed unit tangents ``(u, v)`` orthogonal to unit ``normal (M, 3)``."""
+    n = np.asarray(normal, dtype=float).reshape(-1, 3)
+    helper = np.where(np.abs(n[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
+    u = np.cross(helper, n)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(n, u)
+    return u, v
+
+
+def pair_tolerance(sizes_a: np.ndarray, sizes_b: np.ndarray | None = None,
+                   rel: float = CONTACT_REL_TOL) -> np.ndarray:
+    """(P,) contact tolerance: ``rel`` x the smallest edge of the two boxes, floored."""
+    smallest = np.min(sizes_a, axis=-1)
+    if sizes_b is not None:
+        smallest = np.minimum(smallest, np.min(sizes_b, axis=-1))
+    return np.maximum(rel * smallest, CONTACT_ABS_TOL)
+
+
+def candidate_pairs(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarray,
+                    margin: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """Broad phase: index pairs ``(i < j)`` whose inflated world-aligned bounds overlap.
+
+    ``margin`` is a scalar or a (K,) per-box inflation.
+    """
+    K = len(centers)
+    if K < 2:
+        return np.zeros(0, int), np.zeros(0, int)
+    ext = np.einsum("kij,kj->ki", np.abs(rotations), sizes / 2.0)
+    ext = ext + np.broadcast_to(np.asarray(margin, float), (K,))[:, None]
+    lo, hi = centers - ext, centers + ext
+    i, j = np.triu_indices(K, k=1)
+    if K <= 3000:
+        overlap = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+        return i[overlap], j[overlap]
+    # very large scenes: sweep along x in blocks to bound memory
+    order = np.argsort(lo[:, 0])
+    out_i, out_j = [], []
+    for start in range(0, K, 1024):
+        rows = order[start:start + 1024]
+        cand = (lo[None, :, :] <= hi[rows, None, :]) & (lo[rows, None, :] <= hi[None, :, :])
+        r, c = np.nonzero(np.all(cand, axis=2))
+        keep = rows[r] < c
+        out_i.append(rows[r][keep])
+        out_j.append(c[keep])
+    return np.concatenate(out_i), np.concatenate(out_j)
+
+
+def sat_separation(ca: np.ndarray, Ra: np.ndarray, ha: np.ndarray, cb: np.ndarray,
+                   Rb: np.ndarray, hb: np.ndarray, tol: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Separating-axis test for P box pairs.
+
+    Parameters
+    ----------
+    ca, cb : (P, 3) centres; Ra, Rb : (P, 3, 3) rotations; ha, hb : (P, 3) half extents
+    tol : (P,) contact tolerance
+
+    Returns
+    -------
+    sep : (P,) float
+        Signed separation along the chosen axis (negative: overlap).
+    axis : (P, 3) float
+        The chosen unit axis, oriented from A towards B.
+    is_face : (P,) bool
+        True when the axis is a face normal of A or B.
+    """
+    P = len(ca)
+    face_axes = np.concatenate([Ra.transpose(0, 2, 1), Rb.transpose(0, 2, 1)], axis=1)  # (P,6,3)
+    cross = np.cross(Ra.transpose(0, 2, 1)[:, :, None, :], Rb.transpose(0, 2, 1)[:, None, :, :])
+    cross = cross.reshape(P, 9, 3)
+    norms = np.linalg.norm(cross, axis=2)
+    valid_cross = norms > 1e-6
+    cross = cross / np.where(valid_cross, norms, 1.0)[:, :, None]
+    axes = np.concatenate([face_axes, cross], axis=1)  # (P, 15, 3)
+    d = cb - ca
+    proj_d = np.einsum("pk,pak->pa", d, axes)
+    ra = np.einsum("pj,paj->pa", ha, np.abs(np.einsum("pkj,pak->paj", Ra, axes)))
+    rb = np.einsum("pj,paj->pa", hb, np.abs(np.einsum("pkj,pak->paj", Rb, axes)))
+    s = np.abs(proj_d) - ra - rb  # (P, 15)
+    s[:, 6:][~valid_cross] = -np.inf
+    best_face = np.argmax(s[:, :6], axis=1)
+    s_face = s[np.arange(P), best_face]
+    best_all = np.argmax(s, axis=1)
+    s_all = s[np.arange(P), best_all]
+    # prefer a face axis whenever it is within half a tolerance of the best axis
+    use_face = s_face >= s_all - 0.5 * tol
+    choice = np.where(use_face, best_face, best_all)
+    sep = s[np.arange(P), choice]
+    axis = axes[np.arange(P), choice]
+    sign = np.sign(proj_d[np.arange(P), choice])
+    sign[sign == 0] = 1.0
+    return sep, axis * sign[:, None], use_face
+
+
+def _features(corners: np.ndarray, direction: np.ndarray, tol: np.ndarray, extreme: str
+              ) -> np.ndarray:
+    """(P, 8) bool mask of the corners within ``tol`` of the extreme along ``direction``."""
+    h = np.einsum("pck,pk->pc", corners, direction)
+    if extreme == "max":
+        return h >= h.max(axis=1, keepdims=True) - tol[:, None]
+    return h <= h.min(axis=1, keepdims=True) + tol[:, None]
+
+
+def _interfaces(corners_a: np.ndarray, mask_a: np.ndarray, corners_b: np.ndarray | None,
+                mask_b: np.ndarray | None, normal: np.ndarray, tol: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Intersect the projected features of P touching pairs.
+
+    ``normal`` (P, 3) points from B into A.  With ``corners_b`` None, B is a plane (the
+    interface is A's feature itself).  Returns (vertices (V,3), vertex_pair (V,), u, v, ok (P,)).
+    """
+    import shapely
+
+    P = len(normal)
+    u, v = tangent_frame(normal)
+    frame = np.stack([u, v], axis=1)  # (P, 2, 3)
+
+    def hulls(corners: np.ndarray, mask: np.ndarray):
+        pi, ci = np.nonzero(mask)
+        pts2 = np.einsum("pk,pjk->pj", corners[pi, ci], frame[pi])
+        mp = shapely.multipoints(pts2, indices=pi)
+        geoms = np.empty(P, dtype=object)
+        geoms[np.unique(pi)] = mp
+        return shapely.convex_hull(geoms)
+
+    ga = hulls(corners_a, mask_a)
+    ha_n = np.einsum("pck,pk->pc", corners_a, normal)
+    level_a = np.where(mask_a, ha_n, np.inf).min(axis=1)  # A's touching side (towards B = -n)
+    if corners_b is None:
+        inter = ga
+        level = level_a
+    else:
+        gb = hulls(corners_b, mask_b)
+        hb_n = np.einsum("pck,pk->pc", corners_b, normal)
+        level_b = np.where(mask_b, hb_n, -np.inf).max(axis=1)
+        level = 0.5 * (level_a + level_b)
+        inter = shapely.intersection(ga, gb)
+        empty = shapely.is_empty(inter)
+        if np.any(empty):
+            grown = shapely.buffer(ga[empty], tol[empty], join_style="mitre", cap_style="square")
+            fix = shapely.intersection(grown, gb[empty])
+            fix = np.where(shapely.is_empty(fix), fix, shapely.centroid(fix))
+            inter[empty] = fix
+        # a sliver from float noise (segment much shorter than the tolerance) is one point
+        short = (shapely.get_type_id(inter) == 1) & (shapely.length(inter) < tol)
+        if np.any(short):
+            inter[short] = shapely.centroid(inter[short])
+    inter = shapely.normalize(shapely.remove_repeated_points(inter, tolerance=1e-12))
+    coords, idx = shapely.get_coordinates(inter, return_index=True)
+    # polygons repeat their first vertex at the end: drop it
+    types = shapely.get_type_id(inter)
+    if len(idx):
+        last = np.r_[idx[1:] != idx[:-1], True]
+        first = np.r_[True, idx[1:] != idx[:-1]]
+        closing = last & (types[idx] == 3) & ~first
+        coords, idx = coords[~closing], idx[~closing]
+    ok = np.bincount(idx, minlength=P) > 0
+    verts = (coords[:, [0]] * u[idx] + coords[:, [1]] * v[idx] + level[idx, None] * normal[idx])
+    return verts, idx, u, v, ok
+
+
+def find_contacts(arr: Arrangement, rel_tol: float = CONTACT_REL_TOL) -> ContactSet:
+    """All contacts of ``arr``: cuboid-cuboid and cuboid-support.
+
+    Parameters
+    ----------
+    arr : Arrangement
+    rel_tol : float
+        Tolerance as a fraction of the smallest edge of the two boxes involved.
+
+    Returns
+    -------
+    ContactSet
+    """
+    K = len(arr.cuboids)
+    names = arr.ids + arr.support_ids
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    H = S / 2.0
+    corners = box_corners(C, R, S) if K else np.zeros((0, 8, 3))
+    box_tol = np.maximum(rel_tol * (S.min(axis=1) if K else np.zeros(0)), CONTACT_ABS_TOL)
+
+    parts = []  # (a, b, normal, verts, vidx, u, v, gap)
+    penetrations: list[tuple[str, str, float]] = []
+
+    # ---- cuboid / cuboid
+    i, j = candidate_pairs(C, R, S, box_tol)
+    if len(i):
+        tol = np.minimum(box_tol[i], box_tol[j])
+        sep, axis, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
+        touch = np.abs(sep) <= tol
+        for p in np.nonzero(sep < -tol)[0]:
+            penetrations.append((names[i[p]], names[j[p]], float(-sep[p])))
+        i, j, axis, tol, sep = i[touch], j[touch], axis[touch], tol[touch], sep[touch]
+        if len(i):
+            normal = -axis  # axis points from a(=i) to b(=j); the normal points from b into a
+            mask_a = _features(corners[i], normal, tol, "min")  # a's corners nearest b
+            mask_b = _features(corners[j], normal, tol, "max")
+            verts, vidx, u, v, ok = _interfaces(corners[i], mask_a, corners[j], mask_b, normal, tol)
+            parts.append((i, j, normal, verts, vidx, u, v, sep, ok))
+
+    # ---- cuboid / support
+    for s_idx, sup in enumerate(arr.supports):
+        if not K:
+            break
+        d = (corners - sup.point) @ sup.normal  # (K, 8)
+        dmin = d.min(axis=1)
+        for k in np.nonzero(dmin < -box_tol)[0]:
+            penetrations.append((names[k], sup.id, float(-dmin[k])))
+        ks = np.nonzero(np.abs(dmin) <= box_tol)[0]
+        if len(ks):
+            normal = np.broadcast_to(sup.normal, (len(ks), 3)).copy()
+            mask = d[ks] <= dmin[ks, None] + box_tol[ks, None]
+            # put the feature on the plane: drop each corner along -n by its height
+            flat = corners[ks] - d[ks][:, :, None] * normal[:, None, :]
+            verts, vidx, u, v, ok = _interfaces(flat, mask, None, None, normal, box_tol[ks])
+            parts.append((ks, np.full(len(ks), K + s_idx), normal, verts, vidx, u, v,
+                          dmin[ks], ok))
+
+    return _assemble(names, K, parts, tuple(penetrations))
+
+
+def _assemble(names, K, parts, penetrations) -> ContactSet:
+    a_list, b_list, n_list, u_list, v_list, g_list, vert_list, vidx_list = ([] for _ in range(8))
+    offset = 0
+    for a, b, normal, verts, vidx, u, v, gap, ok in parts:
+        keep = np.nonzero(ok)[0]
+        remap = -np.ones(len(a), int)
+        remap[keep] = np.arange(len(keep)) + offset
+        a_list.append(a[keep])
+        b_list.append(b[keep])
+        n_list.append(normal[keep])
+        u_list.append(u[keep])
+        v_list.append(v[keep])
+        g_list.append(gap[keep])
+        vert_list.append(verts)
+        vidx_list.append(remap[vidx])
+        offset += len(keep)
+    if not a_list:
+        z3 = np.zeros((0, 3))
+        return ContactSet(names, K, np.zeros(0, int), np.zeros(0, int), z3, z3, z3, z3,
+                          np.zeros(0, int), np.zeros(0), penetrations)
+    vidx = np.concatenate(vidx_list)
+    order = np.argsort(vidx, kind="stable")
+    return ContactSet(
+        names, K, np.concatenate(a_list).astype(int), np.concatenate(b_list).astype(int),
+        np.concatenate(n_list), np.concatenate(u_list), np.concatenate(v_list),
+        np.concatenate(vert_list)[order], vidx[order], np.concatenate(g_list), penetrations,
+    )
+
+
+__all__ = ["ContactSet", "find_contacts", "tangent_frame", "pair_tolerance", "candidate_pairs",
+           "sat_separation", "CORNER_SIGNS"]

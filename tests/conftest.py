@@ -1,0 +1,43 @@
+"""Shared fixtures and scene builders for the test suite."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from pipeline.model import Arrangement, Cuboid, Support, box, box_corners, ground  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+REAL_DATA = REPO.parent / "shared" / "data" / "real"
+
+
+def overhang_scene(fraction: float, yaw: float = 0.0) -> Arrangement:
+    """A 1 m cube on the ground with a 1 x 1 x 0.2 slab on top shifted by ``fraction`` of its length."""
+    return Arrangement((box("base", (0, 0, 0.5), (1, 1, 1)),
+                        box("top", (fraction, 0, 1.1), (1, 1, 0.2), yaw=yaw)), (ground(),))
+
+
+def leaning_plank(theta_deg: float, length: float = 1.0, thickness: float = 0.02,
+                  width: float = 0.3) -> Arrangement:
+    """A plank at ``theta_deg`` from the floor, its bottom edge on the ground, top edge on wall x = 0."""
+    th = np.radians(theta_deg)
+    d = np.array([-np.cos(th), 0.0, np.sin(th)])
+    y = np.array([0.0, 1.0, 0.0])
+    R = np.stack([d, y, np.cross(d, y)], axis=1)
+    size = np.array([length, width, thickness])
+    c = box_corners(np.zeros((1, 3)), R[None], size[None])[0]
+    center = np.array([-c[:, 0].min(), 0.0, -c[:, 2].min()])
+    wall = Support("wall:0", np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    return Arrangement((Cuboid("plank", center, R, size),), (ground(), wall))
+
+
+@pytest.fixture
+def real_data() -> Path:
+    if not REAL_DATA.is_dir():
+        pytest.skip(f"real scans not present at {REAL_DATA}")
+    return REAL_DATA

@@ -1,0 +1,200 @@
+"""Physics oracles for the analytic equilibrium check, each just inside and just outside."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from pipeline.constants import GRAVITY
+from pipeline.model import Arrangement, Contact, Cuboid, Support, box, ground
+from pipeline.stability import check_stability, contact_force_newtons
+from synth_scenes.brick_wall import brick_wall
+from tests.conftest import leaning_plank, overhang_scene
+
+
+@pytest.mark.parametrize("fraction, stable", [(0.0, True), (0.30, True), (0.49, True),
+                                              (0.51, False), (0.75, False)])
+def test_overhang_tips_at_half_its_length(fraction, stable):
+    res = check_stability(overhang_scene(fraction))
+    assert res.stable is stable
+    assert [b.id for b in res.bodies if not b.stable] == ([] if stable else ["top"])
+
+
+def test_unstable_overhang_names_the_box_and_its_torque():
+    res = check_stability(overhang_scene(0.75))
+    top = next(b for b in res.bodies if b.id == "top")
+    base = next(b for b in res.bodies if b.id == "base")
+    assert not top.stable and base.stable
+    # the best the contacts can do is leave part of the weight's moment about the edge unbalanced
+    assert top.residual_torque > 0.01 * 200 * GRAVITY * 0.25
+    assert res.energy > 1e3 * res.threshold
+
+
+@pytest.mark.parametrize("theta, stable", [(15, False), (18, False), (22, True), (30, True), (70, True)])
+def test_leaning_plank_ladder_limit(theta, stable):
+    # ladder statics with mu = 0.7 at floor and wall: tan(theta) = (1 - mu^2) / (2 mu) -> 20.0 deg
+    limit = np.degrees(np.arctan((1 - 0.7**2) / (2 * 0.7)))
+    assert limit == pytest.approx(20.0, abs=0.05)
+    assert check_stability(leaning_plank(theta), mu=0.7).stable is stable
+
+
+def test_leaning_plank_without_wall_friction_limit_is_higher():
+    # mu = 0 at both ends: nothing can hold a leaning plank
+    assert not check_stability(leaning_plank(60), mu=0.0).stable
+
+
+def _counterweight(with_weight: bool) -> Arrangement:
+    parts = [box("column", (0, 0, 0.5), (0.2, 0.2, 1.0)),
+             box("beam", (0.4, 0, 1.05), (1.4, 0.2, 0.1))]  # reaches x in [-0.3, 1.1]
+    if with_weight:
+        parts.append(box("weight", (-0.2, 0, 1.5), (0.2, 0.2, 0.8)))  # COM of all at x = 0.08
+    return Arrangement(tuple(parts), (ground(),))
+
+
+def test_counterweighted_cantilever_is_stable_only_as_a_whole():
+    # paper Fig. 10a: the beam alone tips off the column; with the counterweight the whole stands
+    assert not check_stability(_counterweight(False)).stable
+    whole = check_stability(_counterweight(True))
+    assert whole.stable
+    # the pair weight-on-beam alone (beam pinned) is not what holds it: removing the column fails
+    no_column = Arrangement(_counterweight(True).cuboids[1:], (ground(),))
+    assert not check_stability(no_column).stable
+
+
+def test_every_pair_stable_but_the_whole_is_not():
+    # paper Fig. 10b: a staircase of three unit boxes, each shifted by 0.4 of its length
+    b0 = box("b0", (0, 0, 0.5), (1, 1, 1))
+    b1 = box("b1", (0.4, 0, 1.5), (1, 1, 1))
+    b2 = box("b2", (0.8, 0, 2.5), (1, 1, 1))
+    assert check_stability(Arrangement((b0, b1), (ground(),))).stable
+    lower = Arrangement((b1.with_(center=np.array([0.4, 0, 0.5])), b2.with_(center=np.array([0.8, 0, 1.5]))), (ground(),))
+    assert check_stability(lower).stable
+    res = check_stability(Arrangement((b0, b1, b2), (ground(),)))
+    assert not res.stable
+    # b1 + b2 have their joint centre of mass at x = 0.6, beyond b0's edge at 0.5
+    assert "b1" in res.unstable_ids
+
+
+def _beam_column(fixed: bool) -> Arrangement:
+    column = box("column", (0, 0, 0.5), (0.2, 0.2, 1.0))
+    beam = box("beam", (0.4, 0, 0.95), (0.6, 0.1, 0.1))  # touches the column's +x face only
+    contacts = (Contact("beam", "column", "fixed"),) if fixed else ()
+    return Arrangement((column, beam), (ground(),), contacts)
+
+
+def test_beam_beside_a_column_falls_when_touching_stands_when_fused():
+    touching = check_stability(_beam_column(False))
+    assert not touching.stable and touching.unstable_ids == ["beam"]
+    assert check_stability(_beam_column(True)).stable
+
+
+def _shelf(fixed: bool) -> Arrangement:
+    wall = Support("wall:0", (0, 0, 0), (1, 0, 0))
+    board = box("board", (0.15, 0, 1.0), (0.3, 0.8, 0.02))
+    contacts = (Contact("board", "wall:0", "fixed"),) if fixed else ()
+    return Arrangement((board,), (ground(), wall), contacts)
+
+
+def test_shelf_board_on_a_wall_hangs_when_fused_falls_when_touching():
+    assert check_stability(_shelf(True)).stable
+    res = check_stability(_shelf(False))
+    assert not res.stable and res.bodies[0].anchored is False
+
+
+@pytest.mark.parametrize("offset, stable", [(0.45, True), (0.55, False)])
+def test_yawed_box_centre_inside_or_outside_the_support_polygon(offset, stable):
+    # a 0.6 m cube yawed 45 deg on a 1 m cube. Its support polygon is the intersection of the
+    # base's top face with the rotated square; the top's centre is over the base iff offset < 0.5
+    base = box("base", (0, 0, 0.5), (1, 1, 1))
+    top = box("top", (offset, 0, 1.3), (0.6, 0.6, 0.6), yaw=np.pi / 4)
+    res = check_stability(Arrangement((base, top), (ground(),)))
+    assert res.stable is stable
+
+
+def test_contact_forces_sum_to_the_total_weight():
+    arr = Arrangement((box("a", (0, 0, 0.25), (1, 0.8, 0.5)),
+                       box("b", (0.1, 0.05, 0.65), (0.6, 0.6, 0.3), yaw=0.3),
+                       box("c", (-0.2, 0, 0.9), (0.3, 0.3, 0.2), density=300.0)), (ground(),))
+    contacts, forces = contact_force_newtons(arr)
+    total_weight = float(arr.masses.sum() * GRAVITY)
+    on_ground = np.isin(contacts.vertex_contact, np.nonzero(contacts.b == len(arr.cuboids))[0])
+    np.testing.assert_allclose(forces[on_ground].sum(axis=0), [0, 0, total_weight], rtol=1e-6, atol=1e-5 * total_weight)
+    # every force is compressive and inside the friction cone
+    n = contacts.normal[contacts.vertex_contact]
+    fn = np.einsum("ij,ij->i", forces, n)
+    ft = np.linalg.norm(forces - fn[:, None] * n, axis=1)
+    assert np.all(fn >= -1e-9) and np.all(ft <= 0.7 * fn + 1e-6 * total_weight)
+
+
+def test_floating_box_is_unstable_not_an_error():
+    res = check_stability(Arrangement((box("f", (0, 0, 2), (1, 1, 1)),), (ground(),)))
+    assert not res.stable and res.status == "ok"
+    assert res.energy == pytest.approx(1.0)  # its whole weight, in units of its weight, unbalanced
+
+
+def test_interpenetration_is_reported_as_unstable():
+    arr = Arrangement((box("a", (0, 0, 0.5), (1, 1, 1)), box("b", (0, 0, 1.3), (1, 1, 1))), (ground(),))
+    res = check_stability(arr)
+    assert not res.stable and res.status == "interpenetration"
+    assert res.penetrations[0][:2] == ("a", "b")
+
+
+def _wedged() -> Arrangement:
+    cols = (box("c0", (-0.35, 0, 0.5), (0.3, 0.3, 1.0)), box("c1", (0.35, 0, 0.5), (0.3, 0.3, 1.0)))
+    wedge = box("w", (0, 0, 0.7), (0.4, 0.3, 0.2))  # exactly fills the gap, 0.6 m above the floor
+    return Arrangement(cols + (wedge,), (ground(),),
+                       (Contact("c0", "ground", "fixed"), Contact("c1", "ground", "fixed")))
+
+
+def test_side_friction_trap():
+    # plain statics accepts a box held up only by friction on vertical faces; we do not
+    assert check_stability(_wedged(), side_friction=True).stable
+    res = check_stability(_wedged())
+    assert not res.stable and res.unstable_ids == ["w"]
+
+
+def test_backends_agree_on_random_stacks():
+    rng = np.random.default_rng(7)
+    verdicts = []
+    for _ in range(30):
+        n = int(rng.integers(2, 5))
+        cubs, z = [], 0.0
+        x = 0.0
+        for k in range(n):
+            size = rng.uniform(0.2, 0.6, 3)
+            x += rng.uniform(-0.6, 0.6) * size[0] if k else 0.0
+            cubs.append(box(f"b{k}", (x, rng.uniform(-0.05, 0.05), z + size[2] / 2), size,
+                            yaw=rng.uniform(0, 0.6)))
+            z += size[2]
+        arr = Arrangement(tuple(cubs), (ground(),))
+        r_nnls = check_stability(arr, backend="nnls")
+        r_qp = check_stability(arr, backend="qp")
+        if r_nnls.status != "ok":
+            continue
+        verdicts.append(r_nnls.stable)
+        assert r_nnls.stable == r_qp.stable
+        assert r_qp.energy == pytest.approx(r_nnls.energy, rel=1e-4, abs=1e-9)
+        assert check_stability(arr).stable == r_nnls.stable  # auto (load path first)
+    assert 5 <= sum(verdicts) <= len(verdicts) - 5  # the sample has both outcomes
+
+
+def test_brick_wall_is_stable_with_every_backend():
+    arr = brick_wall(60)
+    for backend in ("auto", "qp"):
+        assert check_stability(arr, backend=backend).stable
+
+
+@settings(max_examples=25, deadline=None)
+@given(scale=st.sampled_from([0.01, 1.0, 100.0]), yaw=st.floats(-np.pi, np.pi),
+       tx=st.floats(-50, 50), ty=st.floats(-50, 50), tz=st.floats(-5, 5),
+       fraction=st.sampled_from([0.4, 0.45, 0.55, 0.6]))
+def test_verdict_invariant_to_scale_and_rigid_motion(scale, yaw, tx, ty, tz, fraction):
+    base = overhang_scene(fraction)
+    Rz = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1.0]])
+    t = np.array([tx, ty, tz])
+    moved = Arrangement(
+        tuple(Cuboid(c.id, Rz @ (c.center * scale) + t, Rz @ c.rotation, c.size * scale) for c in base.cuboids),
+        (Support("ground", t, (0, 0, 1)),))
+    r0, r1 = check_stability(base), check_stability(moved)
+    assert r0.stable == r1.stable == (fraction < 0.5)
+    assert r1.energy == pytest.approx(r0.energy, rel=1e-5, abs=1e-12)
