@@ -135,6 +135,7 @@ def plot(results: list[SectionResult], path: Path) -> int:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     from pipeline import atomic
 
@@ -158,8 +159,12 @@ def plot(results: list[SectionResult], path: Path) -> int:
         if positive:
             ax.set_xscale("log")
             ax.set_yscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+        sizes = sorted({p[0] for pts in table.series.values() for p in pts})
+        if 0 < len(sizes) <= 10:  # label the measured sizes themselves
+            ax.set_xticks(sizes, [f"{x:g}" for x in sizes])
         ax.set_title(table.title, fontsize=9)
-        ax.set_xlabel("problem size")
+        ax.set_xlabel(str(table.columns[0]) if table.columns else "problem size")
         ax.set_ylabel("seconds")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
