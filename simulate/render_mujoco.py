@@ -255,7 +255,8 @@ class MujocoRenderer:
                  colors: np.ndarray | None = None) -> None:
         self.width, self.height = int(width), int(height)
         self.boxes = scene_boxes(arr, colors)
-        self._pool: _Pool | None = _get_pool(len(self.boxes["half"]), self.width, self.height)
+        self._closed = False
+        self._pool = _get_pool(len(self.boxes["half"]), self.width, self.height)
 
     def __enter__(self) -> MujocoRenderer:
         return self
@@ -264,9 +265,9 @@ class MujocoRenderer:
         self.close()
 
     def close(self) -> None:
-        if self._pool is not None and self._pool.owner is self:
+        if self._pool.owner is self:
             self._pool.owner = None
-        self._pool = None
+        self._closed = True
 
     def _set_camera(self, intr: Intrinsics, T_world_cam: np.ndarray) -> None:
         """Point MuJoCo's scene camera along the OpenCV camera with an exact frustum."""
@@ -307,12 +308,13 @@ class MujocoRenderer:
         depth : (H, W) float32, metres along the optical axis, 0 = nothing hit
         instance : (H, W) uint16, cuboid index + 1, 0 = support or background
         """
-        if self._pool is None:
+        if self._closed:
             raise ValueError("render() on a closed MujocoRenderer")
         if (intr.width, intr.height) != (self.width, self.height):
             raise ValueError(f"intrinsics are {intr.width}x{intr.height}, the renderer was "
                              f"built for {self.width}x{self.height}")
-        pool = self._pool
+        # the pool may have been replaced (grown, or another thread): fetch it each time
+        pool = self._pool = _get_pool(len(self.boxes["half"]), self.width, self.height)
         if pool.owner is not self:
             pool.load(self.boxes, self)
         r = pool.renderer

@@ -173,3 +173,21 @@ def test_renderer_reuse_many_views(scene):
             assert np.abs(d - truth)[ok].max() < 1e-4
         with pytest.raises(ValueError, match="intrinsics"):
             r.render(Intrinsics.kinect_v1(), T)
+
+
+def test_shared_context_interleaved_renderers_are_independent(scene):
+    """Renderers share one GL context per image size; interleaving them changes nothing."""
+    from simulate.render_mujoco import MujocoRenderer
+
+    intr = Intrinsics(160, 120, 140.0, 140.0, 79.5, 59.5)
+    T = look_at([1.8, -1.4, 1.3], [0.0, 0.1, 0.3])
+    other = Arrangement(tuple(box(f"o{k}", (0.3 * k - 1, 0.2, 0.1), (0.2, 0.2, 0.2))
+                              for k in range(70)), (ground(),))  # grows the geom pool
+    with MujocoRenderer(scene, intr.width, intr.height) as a:
+        first = a.render(intr, T)
+        with MujocoRenderer(other, intr.width, intr.height) as b:
+            b_img = b.render(intr, T)
+            again = a.render(intr, T)
+    assert len(np.unique(b_img[2])) > 5 and b_img[2].max() <= len(other.cuboids)
+    for x, y in zip(first, again, strict=True):
+        assert x.tobytes() == y.tobytes()
