@@ -30,7 +30,6 @@ from pipeline.camera import (
     backproject,
     read_intrinsics,
     read_pose,
-    transform,
     write_intrinsics,
     write_pose,
 )
@@ -87,7 +86,11 @@ class Frame:
         """
         pc, pix = backproject(self.depth.astype(np.float64), self.intrinsics)
         v, u = pix[:, 0], pix[:, 1]
-        return transform(self.T_world_cam, pc), self.color[v, u], self.instance[v, u]
+        R, t = self.T_world_cam[:3, :3], self.T_world_cam[:3, 3]
+        # R @ p + t written out: a BLAS call on (n, 3) x (3, 3) is slower, and it spins
+        # threads on a loaded machine
+        world = (pc[:, 0:1] * R[:, 0] + pc[:, 1:2] * R[:, 1]) + (pc[:, 2:3] * R[:, 2] + t)
+        return world, self.color[v, u], self.instance[v, u]
 
 
 @dataclass(frozen=True)
