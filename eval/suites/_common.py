@@ -251,3 +251,55 @@ def plot_bars(path: str | Path, groups: Mapping[str, Mapping[str, float]], *, yl
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     _save(fig, path)
+
+
+# ------------------------------------------------------------------------- checks
+def regressions(actual: Mapping[str, Mapping[str, float]],
+                expected: Mapping[str, Mapping[str, float]], *,
+                higher_better: Iterable[str] = (), lower_better: Iterable[str] = (),
+                tol: float = 1e-9) -> list[str]:
+    """Where ``actual`` got worse than the stored ``expected`` figures (regression suite).
+
+    Parameters
+    ----------
+    actual, expected : {case: {figure: value}}
+        E.g. ``{"stack-0": {"f1": 0.96, "fixed": 2}}``.  A case or figure that is
+        expected but missing from ``actual`` is a regression.
+    higher_better, lower_better : figure names compared one-sidedly; any other figure
+        in ``expected`` must match within ``tol``.
+    tol : absolute slack.
+
+    Returns
+    -------
+    list of str
+        One line per regression (empty: nothing got worse).
+    """
+    up, down = set(higher_better), set(lower_better)
+    out = []
+    for case, figures in expected.items():
+        got = actual.get(case)
+        if got is None:
+            out.append(f"{case}: missing (expected {dict(figures)})")
+            continue
+        for name, want in figures.items():
+            have = got.get(name)
+            if have is None or have != have:
+                out.append(f"{case}: {name} missing (expected {want})")
+            elif name in up and have < want - tol:
+                out.append(f"{case}: {name} {have:.6g} < stored {want:.6g}")
+            elif name in down and have > want + tol:
+                out.append(f"{case}: {name} {have:.6g} > stored {want:.6g}")
+            elif name not in up and name not in down and abs(have - want) > tol:
+                out.append(f"{case}: {name} {have:.6g} != stored {want:.6g}")
+    return out
+
+
+def failures_markdown(summary) -> str:  # noqa: ANN001 - eval.runner.RunSummary
+    """A Markdown list of the tasks that failed (empty string when none did)."""
+    failures = summary.failures
+    if not failures:
+        return ""
+    lines = [f"Failed tasks ({len(failures)} of {len(summary.records)}); tracebacks are in "
+             "tasks/<id>.json:", ""]
+    lines += [f"- `{tid}`: {err}" for tid, err in failures.items()]
+    return "\n".join(lines) + "\n"

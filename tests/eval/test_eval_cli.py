@@ -120,3 +120,23 @@ def test_common_score_record_and_plots(tmp_path):
     _common.plot_series(tmp_path / "p.png", {"ours": ([1, 2, 4], [0.1, 0.2, 0.5])},
                         xlabel="boxes", ylabel="s", logy=True)
     assert (tmp_path / "p.png").read_bytes() == first
+
+
+def test_common_regressions_and_failures():
+    from eval.runner import RunSummary, TaskRecord
+
+    expected = {"stack-0": {"f1": 0.95, "fixed": 2, "agree": 1.0}, "room-0": {"f1": 0.9}}
+    same = {"stack-0": {"f1": 0.95, "fixed": 2, "agree": 1.0}, "room-0": {"f1": 0.91}}
+    kw = {"higher_better": ["f1", "agree"], "lower_better": ["fixed"]}
+    assert _common.regressions(same, expected, **kw) == []
+    worse = {"stack-0": {"f1": 0.94, "fixed": 3, "agree": 1.0}}
+    lines = _common.regressions(worse, expected, **kw)
+    assert lines == ["stack-0: f1 0.94 < stored 0.95", "stack-0: fixed 3 > stored 2",
+                     "room-0: missing (expected {'f1': 0.9})"]
+    # a two-sided figure must match
+    assert _common.regressions({"a": {"n": 3}}, {"a": {"n": 4}}) == ["a: n 3 != stored 4"]
+    ok = RunSummary((TaskRecord("a", "ok", {}),), "serial", 0.0)
+    assert _common.failures_markdown(ok) == ""
+    bad = RunSummary((TaskRecord("a", "ok", {}), TaskRecord("b", "failed", error="E: x")),
+                     "serial", 0.0)
+    assert "- `b`: E: x" in _common.failures_markdown(bad)
