@@ -18,7 +18,8 @@ Terms, applied in this order to a clean metric depth image (``z``, metres, 0 = n
 6. **projector shadows**: no depth where the IR projector, ``baseline`` metres along the
    camera's +x axis (Kinect v1: 7.5 cm, to the camera's right), cannot see the surface.
 
-``theta`` is the angle between the surface normal and the viewing ray; normals come from
+``theta`` is the angle between the surface normal and the viewing ray (Nguyen et al.
+measure it at the image centre, where the ray is the optical axis); normals come from
 the clean depth image (finite differences that do not cross depth edges).  Shadows are
 found along epipolar lines (image rows: the projector is displaced along x only): a
 point is shadowed when a point of the same row farther toward the projector maps to a
