@@ -195,7 +195,8 @@ class CuboidMatch:
     iou : (len(pairs),) float
         IoU of each matched pair.
     how : tuple of str
-        ``"instance"`` (through the scan's instance id) or ``"iou"`` per pair.
+        Per pair: ``"instance"`` (through the scan's instance id), ``"object"`` (by IoU
+        among the cuboids of the same object) or ``"iou"``.
     unmatched_pred, unmatched_gt : tuple of str
         Ids left without a partner.
     """
@@ -252,12 +253,14 @@ def match_cuboids(pred: Arrangement, gt: Arrangement, *, min_iou: float = MIN_MA
     allowed = iou >= min_iou
     gain = iou.copy()
     by_instance = np.zeros((kp, kg), dtype=bool)
+    by_object = np.zeros(kp, dtype=bool)
     pred_objects = {c.object for c in pred.cuboids if c.object is not None}
     gt_objects = np.array([c.object for c in gt.cuboids], dtype=object)
     if pred_objects and pred_objects <= set(gt_objects.tolist()):
         for i, c in enumerate(pred.cuboids):
             if c.object is not None:  # within its object any overlap will do
                 allowed[i] = (gt_objects == c.object) & (iou[i] > 0.0)
+                by_object[i] = True
     if use_instances:
         for i, c in enumerate(pred.cuboids):
             col = _instance_column(c, gt)
@@ -277,7 +280,7 @@ def match_cuboids(pred: Arrangement, gt: Arrangement, *, min_iou: float = MIN_MA
         for r, c in zip(rows[order], cols[order], strict=True):
             pairs.append((pred.cuboids[r].id, gt.cuboids[c].id))
             values.append(float(iou[r, c]))
-            how.append("instance" if by_instance[r, c] else "iou")
+            how.append("instance" if by_instance[r, c] else "object" if by_object[r] else "iou")
     matched_p = {p for p, _ in pairs}
     matched_g = {g for _, g in pairs}
     return CuboidMatch(tuple(pairs), np.array(values, dtype=float), tuple(how),

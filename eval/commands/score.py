@@ -70,11 +70,13 @@ def report(score, pred_name: str, gt_name: str, per_cuboid: bool = False) -> str
     """A readable summary of a :class:`eval.metrics.Score`."""
     m = score.matching
     n_inst = sum(h == "instance" for h in m.how)
+    n_obj = sum(h == "object" for h in m.how)
     lines = [
         f"prediction: {pred_name} ({score.n_pred} cuboids)",
         f"truth:      {gt_name} ({score.n_gt} cuboids)",
         f"matched {len(m.pairs)} of {score.n_gt} true cuboids ({n_inst} by instance id, "
-        f"{len(m.pairs) - n_inst} by IoU); {len(m.unmatched_pred)} predicted unmatched; "
+        f"{n_obj} by IoU within their object, {len(m.pairs) - n_inst - n_obj} by IoU); "
+        f"{len(m.unmatched_pred)} predicted unmatched; "
         f"mean IoU {score.mean_iou:.3f}",
         "",
         f"contact graph ({score.graph_source})   precision   recall      F1   edges pred/true",

@@ -242,7 +242,7 @@ def test_object_names_restrict_matching():
     assert match_cuboids(Arrangement((p,)), gt).pred_to_gt == {"p": "g0"}
     # it says it belongs to object o1: it may only match g1
     m = match_cuboids(Arrangement((p.with_(object="o1"),)), gt)
-    assert m.pred_to_gt == {"p": "g1"}
+    assert m.pred_to_gt == {"p": "g1"} and m.how == ("object",)
     # names that are not GT object names are ignored
     m = match_cuboids(Arrangement((p.with_(object="cluster7"),)), gt)
     assert m.pred_to_gt == {"p": "g0"}
