@@ -17,7 +17,8 @@ Exit 0, or 2 on bad input."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("prediction", type=Path, help="predicted arrangement.json")
+    parser.add_argument("prediction", type=Path,
+                        help="predicted arrangement.json (or the unseen run folder holding it)")
     parser.add_argument("truth", type=Path, help="scene directory (scene.json) or arrangement.json")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--initial", type=Path, default=None,
@@ -45,6 +46,18 @@ def truth_path(path: Path) -> Path:
     return path
 
 
+def prediction_path(path: Path) -> Path:
+    """The predicted arrangement named by ``path``: a file, or a run folder's arrangement.json."""
+    from pipeline.errors import InputError
+
+    if path.is_dir():
+        found = path / "arrangement.json"
+        if not found.is_file():
+            raise InputError(f"{path}: a result folder needs arrangement.json (unseen run writes it)")
+        return found
+    return path
+
+
 def run(args: argparse.Namespace) -> int:
     from eval.metrics import MIN_MATCH_IOU, score_arrangement
     from pipeline.arrangement_io import read_arrangement
@@ -53,16 +66,17 @@ def run(args: argparse.Namespace) -> int:
     min_iou = MIN_MATCH_IOU if args.min_iou is None else args.min_iou
     if not 0.0 <= min_iou <= 1.0:
         raise InputError(f"--min-iou: must be between 0 and 1, got {min_iou}")
-    pred = read_arrangement(args.prediction)
+    pred_file = prediction_path(args.prediction)
+    pred = read_arrangement(pred_file)
     gt_file = truth_path(args.truth)
     gt = read_arrangement(gt_file)
     initial = read_arrangement(args.initial) if args.initial is not None else None
     score = score_arrangement(pred, gt, initial=initial, graph=args.graph, min_iou=min_iou)
     if args.json:
-        out = {"prediction": str(args.prediction), "truth": str(gt_file), **score.to_json()}
+        out = {"prediction": str(pred_file), "truth": str(gt_file), **score.to_json()}
         print(json.dumps(out, indent=1))
         return 0
-    print(report(score, str(args.prediction), str(gt_file), per_cuboid=args.per_cuboid))
+    print(report(score, str(pred_file), str(gt_file), per_cuboid=args.per_cuboid))
     return 0
 
 

@@ -67,16 +67,21 @@ def test_score_json_hand_checked(files, capsys):
 
 def test_score_table_and_arrangement_file_as_truth(files, capsys):
     pred, scene = files
-    assert main(["score", str(pred), str(scene / "scene.json"), "--graph", "listed",
+    result = pred.parent / "result"
+    result.mkdir()
+    (result / "arrangement.json").write_bytes(pred.read_bytes())
+    assert main(["score", str(result), str(scene / "scene.json"), "--graph", "listed",
                  "--per-cuboid"]) == 0
     text = capsys.readouterr().out
     assert "matched 3 of 3 true cuboids" in text
+    assert f"prediction: {result / 'arrangement.json'}" in text
     assert "optimized typed" in text and "66.7%" in text
     assert "- g0 - g1 fixed  (true, missed)" in text
     assert "p0 -> g2" in text
 
 
-@pytest.mark.parametrize("case", ["missing_pred", "dir_without_scene", "bad_json", "bad_iou"])
+@pytest.mark.parametrize("case", ["missing_pred", "dir_without_scene", "bad_json", "bad_iou",
+                                  "empty_result_dir"])
 def test_score_bad_input_exits_2_with_one_line(files, capsys, tmp_path, case):
     pred, scene = files
     argv = ["score", str(pred), str(scene)]
@@ -85,6 +90,9 @@ def test_score_bad_input_exits_2_with_one_line(files, capsys, tmp_path, case):
     elif case == "dir_without_scene":
         (tmp_path / "empty").mkdir()
         argv[2] = str(tmp_path / "empty")
+    elif case == "empty_result_dir":
+        (tmp_path / "res").mkdir()
+        argv[1] = str(tmp_path / "res")
     elif case == "bad_json":
         (tmp_path / "broken.json").write_text("{not json")
         argv[1] = str(tmp_path / "broken.json")
