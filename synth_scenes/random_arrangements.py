@@ -10,15 +10,20 @@ lists every touching pair as a contact (``touch`` or ``fixed``), and records in 
 ``kind``
     The family.
 ``margin``
-    Where a closed form exists, the signed *tipping margin*: positive means stable.
-    For block stacks (every interface horizontal) it is the smallest signed distance,
-    over the non-fused interfaces, from the centre of mass of everything above to the
-    edge of the interface polygon (shapely intersection), divided by the median box edge;
-    a pure stack is stable exactly when every such margin is positive (friction plays no
-    part when all interfaces are horizontal).  For leaning planks it is
-    ``(angle - ladder_limit) / ladder_limit`` with ``tan(limit) = (1 - mu^2) / (2 mu)``
-    (a thin ladder with friction mu at both ends).  ``None`` where there is no closed
-    form (then the analytic energy decides what is "near the threshold").
+    Where a closed form exists, the signed *tipping angle* in radians: how far the part
+    that can tip must be turned before it topples (positive: stable).  For block stacks
+    (every interface horizontal) it is the smallest, over the non-fused interfaces, of
+    ``atan2(d, h)``: ``d`` the signed distance from the centre of mass of everything
+    above to the edge of the interface polygon (shapely intersection), ``h`` its height
+    above the interface; a pure stack is stable exactly when every ``d`` is positive
+    (friction plays no part when all interfaces are horizontal).  An angle, not a
+    distance, because a tall tower on a narrow base is fragile in any simulator even
+    when ``d`` is a good fraction of a box (measured: both engines topple a 0.75 m tower
+    whose centre of mass is 12 mm inside a 12 x 16 cm base, a 1.7 degree margin).  For
+    leaning planks it is ``angle - limit`` with the thick-ladder limit
+    ``tan(limit) = (1 - mu^2) / (2 mu + (1 + mu^2) t / L)`` (friction mu at floor and
+    wall, contacts on the underside; the thin ladder has ``t = 0``).  ``None`` where there
+    is no closed form (then the analytic energy decides what is "near the threshold").
 
 The deterministic builders (:func:`column`, :func:`overhang`, :func:`leaning_plank`,
 :func:`side_friction_trap`, :func:`cantilever`, :func:`yawed_on_edge`) are the oracles of
@@ -47,10 +52,18 @@ from pipeline.model import (
 WALL = Support("wall:0", np.zeros(3), np.array([1.0, 0.0, 0.0]))  # the plane x = 0, free x > 0
 
 
-def ladder_limit_deg(mu: float = DEFAULT_MU) -> float:
-    """Smallest angle from the ground (degrees) at which a thin ladder with friction ``mu``
-    at the floor and at the wall stands: ``tan(theta) = (1 - mu^2) / (2 mu)``."""
-    return float(np.degrees(np.arctan2(1.0 - mu * mu, 2.0 * mu)))
+def ladder_limit_deg(mu: float = DEFAULT_MU, thickness_ratio: float = 0.0) -> float:
+    """Smallest angle from the ground (degrees) at which a plank with friction ``mu`` at the
+    floor and at the wall stands.
+
+    Derivation (2-D, plank of length L and thickness t resting on its underside edge at
+    both ends, centre of mass t/2 above that line): at the limit both frictions are
+    saturated, ``N_wall = mu m g / (1 + mu^2)``, ``F_wall = mu N_wall``; moments about
+    the floor contact give ``tan(theta) = (1 - mu^2) / (2 mu + (1 + mu^2) t / L)``
+    (``thickness_ratio = t / L``; 0 is the classic thin ladder, 20.0 degrees at mu = 0.7).
+    """
+    return float(np.degrees(np.arctan2(1.0 - mu * mu,
+                                       2.0 * mu + (1.0 + mu * mu) * thickness_ratio)))
 
 
 # ---------------------------------------------------------------------------- builders
@@ -59,23 +72,26 @@ def column(n: int = 10, size: float = 0.1) -> Arrangement:
     cubes = tuple(box(f"c{i}", (0.0, 0.0, size * (i + 0.5)), (size, size, size))
                   for i in range(n))
     contacts = [Contact("c0", "ground")] + [Contact(f"c{i}", f"c{i + 1}") for i in range(n - 1)]
-    return Arrangement(cubes, (ground(),), tuple(contacts), meta={"kind": "column",
-                                                                   "margin": 0.5})
+    arr = Arrangement(cubes, (ground(),), tuple(contacts))
+    ids = [c.id for c in cubes]
+    lower = {c: (ids[i - 1] if i else None) for i, c in enumerate(ids)}
+    return arr.with_(meta={"kind": "column", "margin": stack_margin(arr, ids, lower)})
 
 
 def overhang(fraction: float, size: float = 0.2, yaw: float = 0.0) -> Arrangement:
     """A cube resting on an equal cube, shifted by ``fraction`` of its edge along x.
 
-    Stable for ``fraction < 0.5`` (centre of mass over the support), unstable above.
-    With ``yaw`` the top cube is also turned about its vertical axis (the interface is
-    then a polygon; the margin is still exactly ``0.5 - fraction`` of the edge, because
-    the interface is the top cube's footprint cut by the base's edge x = size / 2).
+    Stable for ``fraction < 0.5`` (centre of mass over the support), unstable above;
+    margin ``atan2((0.5 - fraction) size, size / 2)``.  With ``yaw`` the top cube is also
+    turned about its vertical axis (the interface is then a polygon cut by the base's
+    edge x = size / 2, and the margin is unchanged for small yaw).
     """
     base = box("base", (0.0, 0.0, size / 2), (size, size, size))
     top = box("top", (fraction * size, 0.0, 1.5 * size), (size, size, size), yaw=yaw)
     return Arrangement((base, top), (ground(),),
                        (Contact("base", "ground"), Contact("base", "top")),
-                       meta={"kind": "overhang", "margin": 0.5 - fraction})
+                       meta={"kind": "overhang",
+                             "margin": float(np.arctan2(0.5 - fraction, 0.5))})
 
 
 def yawed_on_edge(offset: float, size: float = 0.1, yaw: float = np.radians(30)) -> Arrangement:
@@ -88,7 +104,7 @@ def yawed_on_edge(offset: float, size: float = 0.1, yaw: float = np.radians(30))
     top = box("top", (0.2 + offset, 0.0, 0.2 + size / 2), (size, size, size), yaw=yaw)
     return Arrangement((base, top), (ground(),),
                        (Contact("base", "ground"), Contact("base", "top")),
-                       meta={"kind": "yawed", "margin": -offset / size})
+                       meta={"kind": "yawed", "margin": float(np.arctan2(-offset, size / 2))})
 
 
 def leaning_plank(angle_deg: float, length: float = 1.0, thickness: float = 0.02,
@@ -96,18 +112,19 @@ def leaning_plank(angle_deg: float, length: float = 1.0, thickness: float = 0.02
     """A plank leaning against the wall x = 0 at ``angle_deg`` from the ground.
 
     Its lower edge rests on the ground, its upper edge on the wall.  A thin plank with
-    friction 0.7 at both ends stands above about 20.3 degrees (:func:`ladder_limit_deg`).
+    friction 0.7 at both ends stands above 20.0 degrees (:func:`ladder_limit_deg`; 19.6
+    degrees for the default 2 cm x 1 m plank).
     """
     phi = np.radians(angle_deg)
     R = rotation_about_axis((0.0, 1.0, 0.0), -(np.pi / 2 - phi))  # local z = (-cos, 0, sin)
     corners = box_corners(np.zeros((1, 3)), R[None], np.array([[thickness, width, length]]))[0]
     center = np.array([-corners[:, 0].min(), 0.0, -corners[:, 2].min()])
     plank = Cuboid("plank", center, R, np.array([thickness, width, length]))
-    lim = ladder_limit_deg()
+    lim = ladder_limit_deg(DEFAULT_MU, thickness / length)
     return Arrangement((plank,), (ground(), WALL),
                        (Contact("plank", "ground"), Contact("plank", "wall:0")),
-                       meta={"kind": "plank", "margin": (angle_deg - lim) / lim,
-                             "angle_deg": angle_deg})
+                       meta={"kind": "plank", "margin": float(np.radians(angle_deg - lim)),
+                             "angle_deg": angle_deg, "limit_deg": lim})
 
 
 def side_friction_trap(gap_fill: float = 1.0) -> Arrangement:
@@ -165,7 +182,7 @@ def _signed_distance(poly, xy: np.ndarray) -> float:
 
 
 def stack_margin(arr: Arrangement, order: list[str], lower: dict[str, str | None]) -> float:
-    """Tipping margin of a pure stack (see the module docstring).
+    """Tipping angle of a pure stack, radians (see the module docstring).
 
     ``order``: cuboid ids bottom to top; ``lower[id]``: the id it rests on (``None`` =
     the ground).  Interfaces listed as ``fixed`` carry tension and are skipped; a stack
@@ -187,8 +204,9 @@ def stack_margin(arr: Arrangement, order: list[str], lower: dict[str, str | None
         if below is not None:
             b = arr.cuboid(below)
             poly = poly.intersection(_footprint(b.center, b.rotation, b.size))
-        best = min(best, _signed_distance(poly, com))
-    return float(best / arr.scale_length()) if np.isfinite(best) else 1.0
+        z_interface = c.center[2] - c.size[2] / 2
+        best = min(best, float(np.arctan2(_signed_distance(poly, com), com[2] - z_interface)))
+    return float(best) if np.isfinite(best) else float(np.pi / 2)
 
 
 # ---------------------------------------------------------------------------- kinds
@@ -327,7 +345,7 @@ def _cantilever(rng: np.random.Generator) -> Arrangement:
     if beam_c == "fixed" and col_c == "touch":
         m = np.asarray(arr.masses)
         com = (m[:, None] * arr.centers).sum(0) / m.sum()
-        margin = float((cw / 2 - com[0]) / arr.scale_length())
+        margin = float(np.arctan2(cw / 2 - com[0], com[2]))
     elif beam_c == "touch":
         margin = -1.0  # a beam held by side friction only falls
     else:
@@ -349,7 +367,7 @@ def _shelf(rng: np.random.Generator) -> Arrangement:
                       (Contact("bracket", "wall:0", "fixed"), Contact("board", "bracket", board_c),
                        Contact("board", "wall:0", _touch_or_fixed(rng, 0.2))))
     fixed_any = any(c.type == "fixed" for c in arr.contacts if "board" in (c.a, c.b))
-    margin = 1.0 if fixed_any else float((bd - depth / 2) / arr.scale_length())
+    margin = 1.0 if fixed_any else float(np.arctan2(bd - depth / 2, t / 2))
     return arr.with_(meta={"kind": "shelf", "margin": margin})
 
 
