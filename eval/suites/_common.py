@@ -147,6 +147,35 @@ def pct(x: float, digits: int = 1) -> str:
     return "-" if x != x else f"{100 * x:.{digits}f}"
 
 
+#: Columns of :func:`pr_f1_rows` (the layout of the paper's Table 1).
+PR_F1_COLUMNS = ["scenes", "#scenes", "initial P / R (%)", "initial F1",
+                 "optimized P / R (%)", "optimized F1", "untyped F1", "mean IoU"]
+
+
+def pr_f1_rows(groups: Mapping[str, Sequence[Mapping]], *, total: str | None = "all"
+               ) -> list[list]:
+    """Table 1 rows from :func:`score_record` results grouped by scene family.
+
+    Each row: name, scene count, initial ``P / R`` and F1, optimized ``P / R`` and F1
+    (typed, micro-averaged over the group's edges, percent), optimized untyped F1 and the
+    mean IoU.  ``total`` adds a row over every group (None: no total row).
+    """
+    items = list(groups.items())
+    if total is not None:
+        items.append((total, [r for recs in groups.values() for r in recs]))
+    rows = []
+    for name, recs in items:
+        init = aggregate_prf(recs, "initial.typed")
+        opt = aggregate_prf(recs, "optimized.typed")
+        unt = aggregate_prf(recs, "optimized.untyped")
+        ious = [r["mean_iou"] for r in recs if "mean_iou" in r]
+        rows.append([name, len(recs),
+                     pr_cell(init) if init["n"] else "-", pct(init["f1"]),
+                     pr_cell(opt) if opt["n"] else "-", pct(opt["f1"]), pct(unt["f1"]),
+                     f"{sum(ious) / len(ious):.3f}" if ious else "-"])
+    return rows
+
+
 # ------------------------------------------------------------------------- tables
 def _cell(v: Any, floatfmt: str) -> str:
     if isinstance(v, float):

@@ -140,3 +140,23 @@ def test_common_regressions_and_failures():
     bad = RunSummary((TaskRecord("a", "ok", {}), TaskRecord("b", "failed", error="E: x")),
                      "serial", 0.0)
     assert "- `b`: E: x" in _common.failures_markdown(bad)
+
+
+def test_common_pr_f1_rows():
+    def rec(tp, n_pred, n_gt, iou, init=None):
+        r = {"optimized": {"typed": {"tp": tp, "n_pred": n_pred, "n_gt": n_gt},
+                           "untyped": {"tp": n_gt, "n_pred": n_gt, "n_gt": n_gt}},
+             "mean_iou": iou}
+        if init:
+            r["initial"] = {"typed": dict(zip(("tp", "n_pred", "n_gt"), init, strict=True))}
+        return r
+
+    groups = {"stack": [rec(4, 4, 5, 0.9, (1, 2, 5)), rec(3, 4, 3, 0.7, (0, 0, 3))],
+              "chair": [rec(2, 2, 2, 0.5)]}
+    rows = _common.pr_f1_rows(groups)
+    assert len(rows[0]) == len(_common.PR_F1_COLUMNS)
+    # stack: optimized tp 7, pred 8, true 8 -> 87.5 / 87.5; initial tp 1, pred 2, true 8
+    assert rows[0] == ["stack", 2, "50.0 / 12.5", "20.0", "87.5 / 87.5", "87.5", "100.0", "0.800"]
+    assert rows[1][:4] == ["chair", 1, "-", "-"] and rows[1][5] == "100.0"
+    # all: optimized tp 9, pred 10, true 10
+    assert rows[2][0] == "all" and rows[2][4] == "90.0 / 90.0" and rows[2][7] == "0.700"
