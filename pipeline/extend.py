@@ -1,0 +1,327 @@
+"""Candidate extensions of cuboids into the unseen (paper section 4.2, Figure 7).
+
+A cuboid is extended by pushing *one face* outwards: the face of box ``i`` that faces
+the other object (the face whose outer half-space contains it: space partition), by
+the gap between that face's plane and the other object along the face normal, so
+that the extended box just touches it.  For a pair (i, j) this gives the candidates of
+Figure 7: unchanged, i extended to touch j, j extended to touch i, and each of those
+fused (``fixed``).  Every cuboid is also offered an extension to each support (ground
+and walls) that one of its faces looks at (hidden legs, bottoms and backs).
+
+Geometry is carried as per-face offsets ``(K, 3, 2)`` (axis, negative/positive face,
+metres >= 0) on top of the initial boxes, so an arrangement for any combination of
+choices is rebuilt with a few vectorised operations (:func:`apply_offsets`).
+
+A candidate whose added volume lies in space the sensor saw as empty is rejected
+(:func:`visible_free_fraction`): points sampled in the added slab are projected into
+the depth image; a sample clearly in front of the measured depth (beyond the sensor
+noise at that depth) was seen through.  Pixels with no reading, or outside the image,
+say nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import Intrinsics, invert, project, transform
+from .contacts import candidate_pairs, pair_tolerance, sat_separation
+from .model import Arrangement, Cuboid, box_corners, is_support_id
+
+#: An extension longer than this many times the scene's median box edge is not proposed.
+MAX_EXTENSION_REL = 12.0
+#: A face looks at a support when its outward normal is within 60 degrees of facing it.
+FACING_COS = 0.5
+#: Reject an extension when more than this fraction of its samples were seen through.
+FREE_FRACTION_MAX = 0.1
+
+
+@dataclass(frozen=True)
+class Extension:
+    """Push face ``(axis, side)`` of cuboid ``box`` outwards by ``length`` metres."""
+
+    box: int
+    axis: int
+    side: int  # 0: the -axis face, 1: the +axis face
+    length: float
+
+    def volume(self, sizes: np.ndarray) -> float:
+        other = [k for k in range(3) if k != self.axis]
+        return float(self.length * sizes[self.box, other[0]] * sizes[self.box, other[1]])
+
+
+@dataclass(frozen=True)
+class Option:
+    """One choice for an edge: which extensions it needs and the contact type it asserts.
+
+    ``type`` is "none" (the pair is left apart, or touches as it happens to), "touch" or
+    "fixed".  ``extensions`` is empty when the pair already touches.
+    """
+
+    type: str
+    extensions: tuple[Extension, ...] = ()
+    volume: float = 0.0
+
+
+@dataclass(frozen=True)
+class Edge:
+    """A pair that could touch: ``a`` a cuboid index, ``b`` a cuboid index or a support id."""
+
+    a: int
+    b: int | str
+    options: tuple[Option, ...]
+    same_object: bool = False
+    touching: bool = False  # already touching in the initial arrangement
+
+
+def apply_offsets(arr: Arrangement, offsets: np.ndarray) -> Arrangement:
+    """The arrangement with every box's faces pushed out by ``offsets (K, 3, 2)``."""
+    if not np.any(offsets):
+        return arr
+    sizes = arr.sizes + offsets.sum(axis=2)
+    shift = np.einsum("kij,kj->ki", arr.rotations, (offsets[:, :, 1] - offsets[:, :, 0]) / 2.0)
+    centers = arr.centers + shift
+    cubs = tuple(c if not np.any(offsets[k]) else
+                 Cuboid(c.id, centers[k], c.rotation, sizes[k], c.density, c.object, c.observed,
+                        c.extra)
+                 for k, c in enumerate(arr.cuboids))
+    return arr.with_(cuboids=cubs)
+
+
+def offsets_of(extensions, K: int) -> np.ndarray:
+    """Per-face offsets of a set of extensions (the longest wins on a shared face)."""
+    off = np.zeros((K, 3, 2))
+    for e in extensions:
+        off[e.box, e.axis, e.side] = max(off[e.box, e.axis, e.side], e.length)
+    return off
+
+
+def _face_gaps(Ca, Ra, Ha, corners_b) -> np.ndarray:
+    """(P, 3, 2) distance from each face plane of box a to the nearest corner of b beyond it."""
+    axes = Ra.transpose(0, 2, 1)  # (P, 3, 3): axis k of each box as a row
+    proj = np.einsum("pck,pak->pac", corners_b, axes)  # (P, 3, 8)
+    cproj = np.einsum("pk,pak->pa", Ca, axes)
+    pos = proj.min(axis=2) - (cproj + Ha)  # + face: how far b starts beyond it
+    neg = (cproj - Ha) - proj.max(axis=2)  # - face
+    return np.stack([neg, pos], axis=2)
+
+
+def pair_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
+    """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs."""
+    K = len(arr.cuboids)
+    if K < 2:
+        return []
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    H = S / 2.0
+    i, j = candidate_pairs(C, R, S, np.full(K, max_ext))
+    if not len(i):
+        return []
+    tol = pair_tolerance(S[i], S[j])
+    corners = box_corners(C, R, S)
+    sep, _, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
+    touching = np.abs(sep) <= tol
+    apart = sep > tol
+    gi = _face_gaps(C[i], R[i], H[i], corners[j])  # i's faces towards j
+    gj = _face_gaps(C[j], R[j], H[j], corners[i])
+    edges: list[Edge] = []
+    exts = []  # (pair, which, axis, side, length)
+    for which, g, (src, dst) in ((0, gi, (i, j)), (1, gj, (j, i))):
+        flat = g.reshape(len(i), 6)
+        best = np.argmax(flat, axis=1)
+        length = flat[np.arange(len(i)), best]
+        ok = apart & (length > -tol) & (length <= max_ext)
+        for p in np.nonzero(ok)[0]:
+            exts.append((p, which, int(best[p] // 2), int(best[p] % 2), max(float(length[p]), 0.0)))
+    # verify that each extension really makes the pair touch (footprints overlap)
+    by_pair: dict[int, list[Extension]] = {}
+    if exts:
+        P = np.array([e[0] for e in exts])
+        which = np.array([e[1] for e in exts])
+        src = np.where(which == 0, i[P], j[P])
+        dst = np.where(which == 0, j[P], i[P])
+        off = np.zeros((len(exts), 3, 2))
+        off[np.arange(len(exts)), [e[2] for e in exts], [e[3] for e in exts]] = [e[4] for e in exts]
+        size2 = S[src] + off.sum(axis=2)
+        cen2 = C[src] + np.einsum("pij,pj->pi", R[src], (off[:, :, 1] - off[:, :, 0]) / 2.0)
+        s2, _, face2 = sat_separation(cen2, R[src], size2 / 2, C[dst], R[dst], H[dst], tol[P])
+        good = np.abs(s2) <= tol[P]
+        for n, (p, _, ax, side, length) in enumerate(exts):
+            if good[n]:
+                by_pair.setdefault(p, []).append(Extension(int(src[n]), ax, side, length))
+    for p in range(len(i)):
+        a, b = int(i[p]), int(j[p])
+        same = (arr.cuboids[a].object is not None
+                and arr.cuboids[a].object == arr.cuboids[b].object)
+        if touching[p]:
+            opts = (Option("touch"), Option("fixed"))
+        elif p in by_pair:
+            opts = [Option("none")]
+            for e in by_pair[p]:
+                v = e.volume(S)
+                opts += [Option("touch", (e,), v), Option("fixed", (e,), v)]
+            opts = tuple(opts)
+        else:
+            continue
+        edges.append(Edge(a, b, opts, same, bool(touching[p])))
+    return edges
+
+
+def support_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
+    """Each cuboid against each support one of its faces looks at."""
+    K = len(arr.cuboids)
+    edges: list[Edge] = []
+    if not K:
+        return edges
+    corners = box_corners(arr.centers, arr.rotations, arr.sizes)
+    tol = pair_tolerance(arr.sizes)
+    for sup in arr.supports:
+        d = (corners - sup.point) @ sup.normal  # (K, 8) heights above the plane
+        dmin = d.min(axis=1)
+        facing = -np.einsum("kij,i->kj", arr.rotations, sup.normal)  # (K, 3) cos of +faces
+        cos = np.stack([-facing, facing], axis=2)  # (K, 3, 2): face outward . (-n)
+        flat = cos.reshape(K, 6)
+        best = np.argmax(flat, axis=1)
+        c = flat[np.arange(K), best]
+        for k in range(K):
+            if abs(dmin[k]) <= tol[k]:
+                edges.append(Edge(k, sup.id, (Option("touch"), Option("fixed")), False, True))
+                continue
+            if dmin[k] < 0 or c[k] < FACING_COS:
+                continue
+            length = float(dmin[k] / c[k])
+            if length > max_ext:
+                continue
+            e = Extension(k, int(best[k] // 2), int(best[k] % 2), length)
+            v = e.volume(arr.sizes)
+            edges.append(Edge(k, sup.id, (Option("none"), Option("touch", (e,), v),
+                                          Option("fixed", (e,), v))))
+    return edges
+
+
+def candidate_edges(arr: Arrangement, max_ext: float | None = None) -> list[Edge]:
+    """All candidate edges of ``arr`` (pairs and supports)."""
+    if max_ext is None:
+        max_ext = MAX_EXTENSION_REL * arr.scale_length()
+    edges, _ = prune_penetrating(arr, pair_edges(arr, max_ext) + support_edges(arr, max_ext))
+    return edges
+
+
+def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], int]:
+    """Drop options whose extension, applied alone, drives a box into another box.
+
+    Extensions only grow boxes, so such an option can never be part of a valid
+    arrangement.  Returns (edges with at least one contact option left, n rejected).
+    """
+    K = len(arr.cuboids)
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    verdict: dict[Extension, bool] = {}
+    for e in edges:
+        for o in e.options:
+            for x in o.extensions:
+                if x in verdict:
+                    continue
+                off = np.zeros((3, 2))
+                off[x.axis, x.side] = x.length
+                size = S[x.box] + off.sum(axis=1)
+                cen = C[x.box] + R[x.box] @ ((off[:, 1] - off[:, 0]) / 2.0)
+                others = np.array([k for k in range(K) if k != x.box], dtype=int)
+                if not len(others):
+                    verdict[x] = True
+                    continue
+                n = len(others)
+                tol = pair_tolerance(np.broadcast_to(size, (n, 3)), S[others])
+                sep, _, _ = sat_separation(np.broadcast_to(cen, (n, 3)),
+                                           np.broadcast_to(R[x.box], (n, 3, 3)),
+                                           np.broadcast_to(size / 2, (n, 3)), C[others],
+                                           R[others], S[others] / 2, tol)
+                verdict[x] = bool(np.all(sep >= -tol))
+    out, rejected = [], 0
+    for e in edges:
+        keep = [o for o in e.options if all(verdict[x] for x in o.extensions)]
+        rejected += len(e.options) - len(keep)
+        if any(o.type != "none" for o in keep):
+            out.append(Edge(e.a, e.b, tuple(keep), e.same_object, e.touching))
+    return out, rejected
+
+
+# ----------------------------------------------------------------------- visibility
+@dataclass(frozen=True)
+class DepthView:
+    """One depth image with its camera, in the arrangement's world frame."""
+
+    depth: np.ndarray  # (H, W) metres, 0 = no reading
+    intrinsics: Intrinsics
+    T_world_cam: np.ndarray
+
+
+def depth_noise(z: np.ndarray) -> np.ndarray:
+    """Kinect v1 axial noise std (Nguyen et al. 2012, frontal): 0.0012 + 0.0019 (z - 0.4)^2."""
+    return 0.0012 + 0.0019 * (np.asarray(z) - 0.4) ** 2
+
+
+def slab_samples(arr: Arrangement, ext: Extension, n: int = 5) -> np.ndarray:
+    """(m, 3) world points filling the slab that ``ext`` adds, kept off its borders."""
+    c = arr.cuboids[ext.box]
+    half = c.size / 2
+    ts = (np.arange(n) + 0.5) / n
+    grids = []
+    for k in range(3):
+        if k == ext.axis:
+            sgn = 1.0 if ext.side else -1.0
+            grids.append(sgn * (half[k] + ext.length * (0.1 + 0.8 * ts)))
+        else:
+            grids.append((ts * 2 - 1) * half[k] * 0.85)
+    g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)
+    return c.center + g @ c.rotation.T
+
+
+def visible_free_fraction(points: np.ndarray, views: list[DepthView],
+                          margin: float = 0.0) -> float:
+    """Fraction of ``points`` that some view saw as empty (clearly in front of its depth)."""
+    if not len(points) or not views:
+        return 0.0
+    seen = np.zeros(len(points), bool)
+    for view in views:
+        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
+        H, W = view.depth.shape
+        u = np.round(uv[:, 0])
+        v = np.round(uv[:, 1])
+        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        iu = np.where(inside, u, 0).astype(int)
+        iv = np.where(inside, v, 0).astype(int)
+        d = view.depth[iv, iu]
+        tol = 3 * depth_noise(d) + margin
+        seen |= inside & (d > 0) & (z < d - tol)
+    return float(seen.mean())
+
+
+def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],
+                        margin: float) -> tuple[list[Edge], int]:
+    """Drop options whose added volume the sensor saw through; returns (edges, n rejected)."""
+    if not views:
+        return edges, 0
+    cache: dict[Extension, bool] = {}
+    rejected = 0
+    out = []
+    for e in edges:
+        keep = []
+        for o in e.options:
+            ok = True
+            for x in o.extensions:
+                if x not in cache:
+                    frac = visible_free_fraction(slab_samples(arr, x), views, margin)
+                    cache[x] = frac <= FREE_FRACTION_MAX
+                ok &= cache[x]
+            if ok:
+                keep.append(o)
+            else:
+                rejected += 1
+        if any(o.type != "none" for o in keep):
+            out.append(Edge(e.a, e.b, tuple(keep), e.same_object, e.touching))
+    return out, rejected
+
+
+__all__ = ["Extension", "Option", "Edge", "apply_offsets", "offsets_of", "candidate_edges",
+           "pair_edges", "support_edges", "prune_penetrating", "DepthView", "prune_by_visibility",
+           "visible_free_fraction", "slab_samples", "depth_noise", "is_support_id"]

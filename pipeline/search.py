@@ -1,0 +1,345 @@
+"""Choosing contact types and extensions: branch and bound (paper section 4.2, Algorithm 1).
+
+Every candidate edge (a pair of cuboids, or a cuboid and a support, see
+:mod:`pipeline.extend`) takes exactly one of its options.  A choice is feasible when
+no boxes interpenetrate and the arrangement is stable (:mod:`pipeline.stability`);
+among feasible choices we minimise, lexicographically, the number of ``fixed``
+contacts and then the added volume.  Edges between two parts of the same object are
+fused by construction (their ``fixed`` costs nothing: the segmentation says they are
+one rigid object) and only choose their extension.
+
+Branch and bound
+----------------
+The root sets every edge to its most supportive option (``fixed``, with the smallest
+extension that does not interpenetrate).  Turning a ``fixed`` into ``touch`` or none
+can only remove support, so when a node is unstable with its undecided edges still
+fixed, no completion of it can be stable: the whole subtree is pruned.  Edges are
+decided one at a time in a fixed order (the most expensive first), each trying its
+options cheapest first, so the first leaf reached is a greedy solution and later
+leaves only replace it when strictly cheaper; a node whose decided edges already cost
+as much as the best leaf is cut.  Independent groups (cuboids that no edge connects)
+are searched separately, stability results are cached per assignment, and contact
+geometry per set of extensions (type changes reuse it).  The search has a time budget
+and always returns the best arrangement found; when even the root is unstable (a
+support was missed), the root is returned, marked unstable, with the boxes that move.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .contacts import ContactSet, find_contacts
+from .errors import InputError
+from .extend import Edge, Option, apply_offsets, offsets_of
+from .model import Arrangement, Contact, StabilitySummary
+from .stability import check_stability
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class SearchStats:
+    """Counters of one search (all groups)."""
+
+    groups: int = 0
+    edges: int = 0
+    nodes: int = 0
+    leaves: int = 0
+    pruned_unstable: int = 0
+    pruned_bound: int = 0
+    pruned_penetration: int = 0
+    stability_checks: int = 0
+    cache_hits: int = 0
+    contact_evaluations: int = 0
+    seconds: float = 0.0
+    budget_spent: bool = False
+    unstable_groups: int = 0
+
+    def to_json(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    arrangement: Arrangement  #: final geometry, typed contacts, stability summary
+    stable: bool
+    n_fixed: int  #: fixed contacts chosen by the search (same-object fusions not counted)
+    added_volume: float  #: m^3
+    unstable_ids: tuple[str, ...]
+    stats: SearchStats
+    choices: dict = field(default_factory=dict)  #: edge (a, b) -> option type chosen
+
+
+def _edge_name(arr: Arrangement, e: Edge) -> tuple[str, str]:
+    b = e.b if isinstance(e.b, str) else arr.cuboids[e.b].id
+    return arr.cuboids[e.a].id, b
+
+
+def _option_cost(e: Edge, o: Option) -> tuple[int, float]:
+    return (int(o.type == "fixed" and not e.same_object), o.volume)
+
+
+class _Group:
+    """One independent group: its cuboids, edges and caches."""
+
+    def __init__(self, arr: Arrangement, boxes: list[int], edges: list[Edge], mu: float,
+                 threshold: float | None, stats: SearchStats) -> None:
+        self.full = arr
+        self.boxes = boxes
+        self.local = {k: n for n, k in enumerate(boxes)}
+        self.sub = arr.with_(cuboids=tuple(arr.cuboids[k] for k in boxes), contacts=())
+        # same-object edges only fuse (or stay apart when they cannot reach each other)
+        fixed_edges = []
+        for e in edges:
+            if e.same_object:
+                opts = [o for o in e.options if o.type == "fixed"] or list(e.options)
+                e = Edge(e.a, e.b, tuple(sorted(opts, key=lambda o: o.volume)), True, e.touching)
+            fixed_edges.append(e)
+        # decide the most expensive edges first; options cheapest first
+        self.edges = sorted(fixed_edges, key=lambda e: -max(o.volume for o in e.options))
+        self.options = [sorted(e.options, key=lambda o: _option_cost(e, o)) for e in self.edges]
+        self.mu, self.threshold, self.stats = mu, threshold, stats
+        self.stab_cache: dict[tuple, tuple[bool, object]] = {}
+        self.geom_cache: dict[tuple, tuple[Arrangement, ContactSet]] = {}
+
+    # -- evaluation
+    def geometry(self, assignment: tuple[int, ...]) -> tuple[Arrangement, ContactSet]:
+        exts = []
+        for e, opts, i in zip(self.edges, self.options, assignment):
+            exts.extend(opts[i].extensions)
+        key = tuple(sorted((x.box, x.axis, x.side, x.length) for x in exts))
+        hit = self.geom_cache.get(key)
+        if hit is not None:
+            return hit
+        local_exts = [type(x)(self.local[x.box], x.axis, x.side, x.length) for x in exts]
+        geom = apply_offsets(self.sub, offsets_of(local_exts, len(self.boxes)))
+        cs = find_contacts(geom)
+        self.stats.contact_evaluations += 1
+        self.geom_cache[key] = (geom, cs)
+        return geom, cs
+
+    def contacts_of(self, assignment: tuple[int, ...]) -> list[Contact]:
+        out = []
+        for e, opts, i in zip(self.edges, self.options, assignment):
+            if opts[i].type == "fixed":
+                a, b = _edge_name(self.full, e)
+                out.append(Contact(a, b, "fixed"))
+        return out
+
+    def evaluate(self, assignment: tuple[int, ...]):
+        """(stable, result-or-status) of an assignment, cached."""
+        hit = self.stab_cache.get(assignment)
+        if hit is not None:
+            self.stats.cache_hits += 1
+            return hit
+        geom, cs = self.geometry(assignment)
+        if cs.penetrations:
+            out = (False, "penetration")
+        else:
+            arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
+            try:
+                res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs)
+            except InputError:  # a fixed pair that does not touch in this geometry
+                out = (False, "detached")
+            else:
+                self.stats.stability_checks += 1
+                out = (res.stable, res)
+        self.stab_cache[assignment] = out
+        return out
+
+    def cost(self, assignment: tuple[int, ...], upto: int | None = None) -> tuple[int, float]:
+        n = len(assignment) if upto is None else upto
+        fixed = sum(_option_cost(e, o[i])[0] for e, o, i in
+                    zip(self.edges[:n], self.options[:n], assignment[:n]))
+        exts = {}
+        for o, i in zip(self.options[:n], assignment[:n]):
+            for x in o[i].extensions:
+                k = (x.box, x.axis, x.side)
+                exts[k] = max(exts.get(k, (0.0, x))[0], x.length), x
+        vol = 0.0
+        for (box, axis, _side), (length, x) in exts.items():
+            s = self.full.sizes[box]
+            other = [k for k in range(3) if k != axis]
+            vol += length * s[other[0]] * s[other[1]]
+        return fixed, vol
+
+    # -- search
+    def root(self) -> tuple[int, ...]:
+        """Every edge at its most supportive option that does not interpenetrate alone."""
+        out = []
+        for e, opts in zip(self.edges, self.options):
+            fixed = [n for n, o in enumerate(opts) if o.type == "fixed"]
+            fixed.sort(key=lambda n: opts[n].volume)
+            out.append(fixed[0] if fixed else 0)
+        assignment = tuple(out)
+        # an extension that interpenetrates in the root is replaced by the next option
+        for _ in range(len(out)):
+            ok, res = self.evaluate(assignment)
+            if res != "penetration":
+                break
+            geom, cs = self.geometry(assignment)
+            bad = {n for pair in cs.penetrations for n in pair[:2]}
+            changed = False
+            for k, (e, opts) in enumerate(zip(self.edges, self.options)):
+                names = _edge_name(self.full, e)
+                if opts[out[k]].extensions and (names[0] in bad or names[1] in bad):
+                    alts = [n for n, o in enumerate(opts)
+                            if n != out[k] and o.type == "fixed" and not o.extensions]
+                    alts += [n for n, o in enumerate(opts) if o.type == "none"]
+                    if alts:
+                        out[k] = alts[0]
+                        changed = True
+            assignment = tuple(out)
+            if not changed:
+                break
+        return assignment
+
+    def run(self, deadline: float) -> tuple[tuple[int, ...], bool, object]:
+        root = self.root()
+        ok, res = self.evaluate(root)
+        self.stats.nodes += 1
+        if not ok:
+            return root, False, res
+        best = [root, self.cost(root), res]
+        n = len(self.edges)
+
+        def dive(level: int, assignment: list[int]) -> None:
+            if time.perf_counter() > deadline:
+                self.stats.budget_spent = True
+                return
+            if level == n:
+                self.stats.leaves += 1
+                c = self.cost(tuple(assignment))
+                if c < best[1]:
+                    best[0], best[1] = tuple(assignment), c
+                    best[2] = self.evaluate(tuple(assignment))[1]
+                return
+            for i in range(len(self.options[level])):
+                trial = list(assignment)
+                trial[level] = i
+                lower = self.cost(tuple(trial), level + 1)
+                if lower >= best[1]:
+                    self.stats.pruned_bound += 1
+                    continue
+                self.stats.nodes += 1
+                ok, res = self.evaluate(tuple(trial))
+                if not ok:
+                    if res == "penetration":
+                        self.stats.pruned_penetration += 1
+                    else:
+                        self.stats.pruned_unstable += 1
+                    continue
+                dive(level + 1, trial)
+                if time.perf_counter() > deadline:
+                    self.stats.budget_spent = True
+                    return
+
+        dive(0, list(root))
+        return best[0], True, best[2]
+
+
+def _groups(K: int, edges: list[Edge]) -> list[tuple[list[int], list[Edge]]]:
+    parent = list(range(K))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for e in edges:
+        if not isinstance(e.b, str):
+            ra, rb = find(e.a), find(e.b)
+            if ra != rb:
+                parent[max(ra, rb)] = min(ra, rb)
+    members: dict[int, list[int]] = {}
+    for k in range(K):
+        members.setdefault(find(k), []).append(k)
+    by_root: dict[int, list[Edge]] = {r: [] for r in members}
+    for e in edges:
+        by_root[find(e.a)].append(e)
+    return [(members[r], by_root[r]) for r in sorted(members)]
+
+
+def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: float = 0.7,
+           threshold: float | None = None, progress=None) -> SearchResult:
+    """Branch and bound over the candidate edges of ``arr`` (see the module docstring).
+
+    Parameters
+    ----------
+    arr : Arrangement
+        Initial cuboids and supports (contacts ignored).
+    edges : list of Edge
+        Candidates from :func:`pipeline.extend.candidate_edges` (after pruning).
+    budget : float
+        Seconds for the whole search; the best arrangement found so far is returned.
+    progress : callable, optional
+        ``progress(done_groups, total_groups)``.
+    """
+    t0 = time.perf_counter()
+    stats = SearchStats(edges=len(edges))
+    K = len(arr.cuboids)
+    groups = _groups(K, edges)
+    stats.groups = len(groups)
+    # biggest groups first, each with a share of the remaining budget
+    groups.sort(key=lambda g: -len(g[1]))
+    total_edges = max(sum(len(g[1]) for g in groups), 1)
+    remaining_edges = total_edges
+    all_exts = []
+    contacts: list[Contact] = []
+    unstable: list[str] = []
+    choices = {}
+    n_fixed = 0
+    for gi, (boxes, gedges) in enumerate(groups):
+        now = time.perf_counter()
+        left = budget - (now - t0)
+        share = left * max(len(gedges), 1) / max(remaining_edges, 1)
+        remaining_edges -= len(gedges)
+        group = _Group(arr, boxes, gedges, mu, threshold, stats)
+        assignment, ok, res = group.run(now + max(share, 0.0))
+        if not ok:
+            stats.unstable_groups += 1
+            if hasattr(res, "unstable_ids"):
+                unstable += list(res.unstable_ids)
+            else:
+                unstable += [arr.cuboids[k].id for k in boxes]
+        for e, opts, i in zip(group.edges, group.options, assignment):
+            o = opts[i]
+            all_exts.extend(o.extensions)
+            choices[_edge_name(arr, e)] = o.type
+            if o.type == "fixed":
+                contacts.append(Contact(*_edge_name(arr, e), "fixed"))
+                n_fixed += int(not e.same_object)
+        if progress is not None:
+            progress(gi + 1, len(groups))
+    geom = apply_offsets(arr, offsets_of(all_exts, K))
+    added = float(np.sum(np.prod(geom.sizes, axis=1) - np.prod(arr.sizes, axis=1)))
+    final = finalize(geom, contacts, mu=mu, threshold=threshold)
+    stats.seconds = time.perf_counter() - t0
+    stable = bool(final.stability.stable) if final.stability else False
+    return SearchResult(final, stable, n_fixed, added, tuple(unstable), stats, choices)
+
+
+def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
+             threshold: float | None = None) -> Arrangement:
+    """List every touching pair as a contact (``fixed`` where chosen, else ``touch``) and
+    attach the stability summary of the whole arrangement."""
+    cs = find_contacts(geom)
+    fixed_keys = {c.key for c in fixed}
+    touching = cs.lookup()
+    listed = [c for c in fixed if c.key in touching]
+    for a, b in cs.pairs:
+        c = Contact(a, b, "touch")
+        if c.key not in fixed_keys:
+            listed.append(c)
+    listed.sort(key=lambda c: (c.key, c.type))
+    arr = geom.with_(contacts=tuple(listed))
+    res = check_stability(arr, mu=mu, threshold=threshold, contacts=cs)
+    return arr.with_(stability=StabilitySummary(res.energy, res.stable, res.threshold))
+
+
+__all__ = ["search", "SearchResult", "SearchStats", "finalize"]

@@ -1,0 +1,99 @@
+"""Hallucinating wholly occluded parts by symmetry (paper section 5.1 (ii)).
+
+A part with no points cannot be extended into existence.  Where an object shows a
+repeated structure, the missing copy is added: an object with a top (its part of
+largest horizontal area) and exactly three legs below it (upright parts taller than
+wide) whose positions in the top's frame occupy three of its four quadrants gets a
+fourth leg, mirrored from a neighbouring leg into the empty quadrant.  The new part
+is kept only if it does not interpenetrate anything and, when a depth image exists,
+the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
+no observed box, and takes part in the search like any other cuboid.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .contacts import pair_tolerance, sat_separation
+from .extend import FREE_FRACTION_MAX, DepthView, visible_free_fraction
+from .model import Arrangement, Cuboid
+
+
+def _upright_extent(c: Cuboid) -> tuple[float, float]:
+    """(height, largest horizontal extent) of a box, from its axes' z components."""
+    zc = np.abs(c.rotation[2, :])
+    ax = int(np.argmax(zc))
+    other = [k for k in range(3) if k != ax]
+    return float(c.size[ax]), float(max(c.size[other]))
+
+
+def _box_samples(c: Cuboid, n: int = 5) -> np.ndarray:
+    t = ((np.arange(n) + 0.5) / n) * 2 - 1
+    g = np.stack(np.meshgrid(t, t, t, indexing="ij"), axis=-1).reshape(-1, 3) * (c.size / 2 * 0.85)
+    return c.center + g @ c.rotation.T
+
+
+def _free(arr: Arrangement, cand: Cuboid) -> bool:
+    others = [c for c in arr.cuboids]
+    if not others:
+        return True
+    n = len(others)
+    C = np.stack([c.center for c in others])
+    R = np.stack([c.rotation for c in others])
+    S = np.stack([c.size for c in others])
+    tol = pair_tolerance(np.broadcast_to(cand.size, (n, 3)), S)
+    sep, _, _ = sat_separation(np.broadcast_to(cand.center, (n, 3)),
+                               np.broadcast_to(cand.rotation, (n, 3, 3)),
+                               np.broadcast_to(cand.size / 2, (n, 3)), C, R, S / 2, tol)
+    return bool(np.all(sep >= -tol))
+
+
+def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
+                ) -> tuple[Arrangement, list[str]]:
+    """Add mirrored fourth legs where three are seen; returns (arrangement, new ids)."""
+    by_object: dict[str, list[int]] = {}
+    for k, c in enumerate(arr.cuboids):
+        if c.object is not None:
+            by_object.setdefault(c.object, []).append(k)
+    added: list[Cuboid] = []
+    for obj, members in sorted(by_object.items()):
+        if len(members) < 4:
+            continue
+        cubs = [arr.cuboids[k] for k in members]
+        areas = []
+        for c in cubs:
+            zc = np.abs(c.rotation[2, :])
+            ax = int(np.argmax(zc))
+            other = [k for k in range(3) if k != ax]
+            areas.append(c.size[other[0]] * c.size[other[1]])
+        top = cubs[int(np.argmax(areas))]
+        legs = []
+        for c in cubs:
+            if c is top:
+                continue
+            h, w = _upright_extent(c)
+            if h > 1.5 * w and c.center[2] < top.center[2]:
+                legs.append(c)
+        if len(legs) != 3:
+            continue
+        local = np.stack([top.rotation.T @ (leg.center - top.center) for leg in legs])
+        quad = {(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]}
+        if len(quad) != 3 or any(0 in q for q in quad):
+            continue
+        missing = [q for q in ((1, 1), (1, -1), (-1, 1), (-1, -1)) if q not in quad][0]
+        # mirror the leg that differs from the empty quadrant in x only
+        src = next(n for n, p in enumerate(local)
+                   if int(np.sign(p[0])) == -missing[0] and int(np.sign(p[1])) == missing[1])
+        p = local[src].copy()
+        p[0] = -p[0]
+        leg = legs[src]
+        new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ p, leg.rotation,
+                     leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})
+        if not _free(arr.with_(cuboids=arr.cuboids + tuple(added)), new):
+            continue
+        if views and visible_free_fraction(_box_samples(new), views, margin) > FREE_FRACTION_MAX:
+            continue
+        added.append(new)
+    if not added:
+        return arr, []
+    return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]
