@@ -190,16 +190,30 @@ class _Pool:
         self.model = mujoco.MjModel.from_xml_string(_pool_mjcf(capacity, width, height))
         self.data = mujoco.MjData(self.model)
         try:
-            self.renderer = mujoco.Renderer(self.model, height, width)
+            self.gl = mujoco.GLContext(width, height)
+            self.gl.make_current()
+            self.context = mujoco.MjrContext(self.model, mujoco.mjtFontScale.mjFONTSCALE_150)
         except Exception as exc:
             raise RuntimeError(
                 "MuJoCo could not create an offscreen GL context "
                 f"(MUJOCO_GL={os.environ.get('MUJOCO_GL')}): {exc}; install Mesa EGL "
                 "(libegl1 libegl-mesa0) or set MUJOCO_GL=osmesa") from exc
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self.context)
+        self.context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self.scene = mujoco.MjvScene(self.model, maxgeom=capacity + 16)
+        self.camera = mujoco.MjvCamera()
+        self.rect = mujoco.MjrRect(0, 0, width, height)
         self.option = mujoco.MjvOption()
         self.option.geomgroup[HIDDEN_GROUP] = 0
         self.owner: object | None = None
-        self.lookup = np.zeros(capacity + 1, dtype=np.uint16)  # index -1 -> 0
+        self.lookup = np.zeros(capacity, dtype=np.uint16)  # geom id -> instance
+        # OpenGL's reversed-Z projection coefficients in float32, as glFrustum builds them
+        # (the same conversion as mujoco.Renderer): depth = d / (buffer + c)
+        zf, zn = np.float32(ZFAR), np.float32(ZNEAR)  # statistic extent is 1
+        c = -(zf + zn) / (zf - zn)
+        d = -(np.float32(2) * zf * zn) / (zf - zn)
+        self.c_coef = float(np.float32(-0.5) * c - np.float32(0.5))
+        self.d_coef = float(np.float32(-0.5) * d)
 
     def load(self, boxes: dict[str, np.ndarray], owner: object) -> None:
         m = self.model
@@ -221,7 +235,78 @@ class _Pool:
         self.owner = owner
 
     def close(self) -> None:
-        self.renderer.close()
+        self.context.free()
+        self.gl.free()
+
+
+    def _set_camera(self, intr: Intrinsics, T_world_cam: np.ndarray) -> None:
+        """Point the scene camera along the OpenCV camera with an exact frustum."""
+        T = np.asarray(T_world_cam, float)
+        near = ZNEAR  # statistic extent is 1
+        # Pixel u covers [u - 0.5, u + 0.5]: the image spans u in [-0.5, W - 0.5].
+        left = (-0.5 - intr.cx) / intr.fx * near
+        right = (intr.width - 0.5 - intr.cx) / intr.fx * near
+        top = (intr.cy + 0.5) / intr.fy * near  # OpenGL y is up = -OpenCV y
+        bottom = -(intr.height - 0.5 - intr.cy) / intr.fy * near
+        for cam in (self.scene.camera[0], self.scene.camera[1]):
+            cam.pos[:] = T[:3, 3]
+            cam.forward[:] = T[:3, 2]
+            cam.up[:] = -T[:3, 1]
+            cam.frustum_center = (left + right) / 2
+            cam.frustum_width = (right - left) / 2
+            cam.frustum_bottom = bottom
+            cam.frustum_top = top
+            cam.frustum_near = near
+            cam.frustum_far = ZFAR
+            cam.orthographic = 0
+
+    def draw(self, intr: Intrinsics, T_world_cam: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Two passes: shaded colour; then flat id colours with the depth buffer.
+
+        The id pass (``mjRND_SEGMENT | mjRND_IDCOLOR``, no lighting or blending) gives the
+        segmentation and, read together with it, the depth (MuJoCo's renderer also takes
+        depth from a segmentation pass: it is more accurate far away).
+        """
+        import mujoco
+
+        H, W = self.height, self.width
+        self.gl.make_current()
+        mujoco.mjv_updateScene(self.model, self.data, self.option, None, self.camera,
+                               mujoco.mjtCatBit.mjCAT_ALL, self.scene)
+        self._set_camera(intr, T_world_cam)
+        flags = self.scene.flags
+        saved = flags.copy()
+        color = np.empty((H, W, 3), np.uint8)
+        try:
+            mujoco.mjr_render(self.rect, self.scene, self.context)
+            mujoco.mjr_readPixels(color, None, self.rect, self.context)
+            flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = 1
+            flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = 1
+            ids = np.empty((H, W, 3), np.uint8)
+            zbuf = np.empty((H, W), np.float32)
+            mujoco.mjr_render(self.rect, self.scene, self.context)
+            mujoco.mjr_readPixels(ids, zbuf, self.rect, self.context)
+        finally:
+            np.copyto(flags, saved)
+        # segment id (colour-coded, 0 = background) -> scene geom -> model geom -> instance
+        seg = (ids[..., 0].astype(np.int64) | (ids[..., 1].astype(np.int64) << 8)
+               | (ids[..., 2].astype(np.int64) << 16))
+        n = self.scene.ngeom
+        table = np.zeros(n + 2, np.uint16)
+        hit_table = np.zeros(n + 2, bool)
+        for g in self.scene.geoms[:n]:  # a few dozen scene geoms, not pixels
+            if g.segid >= 0 and g.objtype == _MJOBJ_GEOM:
+                table[g.segid + 1] = self.lookup[g.objid]
+                hit_table[g.segid + 1] = True
+        seg = np.clip(seg, 0, n + 1)
+        instance = np.flipud(table[seg])
+        hit = np.flipud(hit_table[seg])
+        with np.errstate(divide="ignore"):
+            depth = np.flipud(self.d_coef / (zbuf.astype(np.float64) + self.c_coef))
+        depth = np.where(hit & np.isfinite(depth) & (depth < ZFAR * 0.999), depth, 0.0)
+        return np.ascontiguousarray(np.flipud(color)), depth.astype(np.float32), \
+            np.ascontiguousarray(instance)
 
 
 #: Pools keyed by (pid, thread, width, height): a GL context is current in one thread
@@ -269,28 +354,6 @@ class MujocoRenderer:
             self._pool.owner = None
         self._closed = True
 
-    def _set_camera(self, intr: Intrinsics, T_world_cam: np.ndarray) -> None:
-        """Point MuJoCo's scene camera along the OpenCV camera with an exact frustum."""
-        scene = self._pool.renderer.scene
-        T = np.asarray(T_world_cam, float)
-        near = ZNEAR  # statistic extent is 1
-        # Pixel u covers [u - 0.5, u + 0.5]: the image spans u in [-0.5, W - 0.5].
-        left = (-0.5 - intr.cx) / intr.fx * near
-        right = (intr.width - 0.5 - intr.cx) / intr.fx * near
-        top = (intr.cy + 0.5) / intr.fy * near  # OpenGL y is up = -OpenCV y
-        bottom = -(intr.height - 0.5 - intr.cy) / intr.fy * near
-        for cam in (scene.camera[0], scene.camera[1]):
-            cam.pos[:] = T[:3, 3]
-            cam.forward[:] = T[:3, 2]
-            cam.up[:] = -T[:3, 1]
-            cam.frustum_center = (left + right) / 2
-            cam.frustum_width = (right - left) / 2
-            cam.frustum_bottom = bottom
-            cam.frustum_top = top
-            cam.frustum_near = near
-            cam.frustum_far = ZFAR
-            cam.orthographic = 0
-
     def render(self, intr: Intrinsics, T_world_cam: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Render one view.
@@ -317,27 +380,7 @@ class MujocoRenderer:
         pool = self._pool = _get_pool(len(self.boxes["half"]), self.width, self.height)
         if pool.owner is not self:
             pool.load(self.boxes, self)
-        r = pool.renderer
-
-        def draw() -> np.ndarray:
-            r.update_scene(pool.data, camera=-1, scene_option=pool.option)
-            self._set_camera(intr, T_world_cam)
-            return r.render()
-
-        r.disable_depth_rendering()
-        r.disable_segmentation_rendering()
-        color = draw().copy()
-        r.enable_segmentation_rendering()
-        seg = draw()
-        r.disable_segmentation_rendering()
-        geom = np.where(seg[..., 1] == _MJOBJ_GEOM, seg[..., 0], -1)
-        instance = pool.lookup[geom]
-        hit = geom >= 0
-        r.enable_depth_rendering()
-        depth = draw().astype(np.float32)
-        r.disable_depth_rendering()
-        depth[~hit | ~np.isfinite(depth) | (depth >= ZFAR * 0.999)] = 0.0
-        return color, depth, instance
+        return pool.draw(intr, T_world_cam)
 
 
 def render_mujoco(arr: Arrangement, intr: Intrinsics, T_world_cam: np.ndarray
