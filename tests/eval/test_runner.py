@@ -31,6 +31,14 @@ def counted(rng: np.random.Generator, n: int, log: str, interrupt: bool = False)
     return {"n": n, "u": float(rng.random())}
 
 
+def not_a_dict(rng: np.random.Generator) -> list:
+    return [1, 2]
+
+
+def not_json(rng: np.random.Generator) -> dict:
+    return {"x": object()}
+
+
 def _tasks(k: int = 6) -> list[Task]:
     return [Task(f"scene-{i:02d}", draw, {"n": 5 + i, "scale": 0.5 * (i + 1)}) for i in range(k)]
 
@@ -119,3 +127,13 @@ def test_bad_task_ids_rejected(tmp_path):
         run_tasks([Task("a", draw, {"n": 1}), Task("a", draw, {"n": 2})], tmp_path)
     with pytest.raises(ValueError, match="letters"):
         run_tasks([Task("../evil", draw, {"n": 1})], tmp_path)
+
+
+def test_results_must_be_json_dicts(tmp_path):
+    s = run_tasks([Task("a", not_a_dict), Task("b", not_json), Task("c", draw, {"n": 2})],
+                  tmp_path, progress=False)
+    assert s.failures["a"] == "TypeError: task returned list, expected a dict"
+    assert s.failures["b"].startswith("TypeError: Object of type object")
+    assert s.n_ok == 1 and s.results["c"]["n"] == 2
+    # numpy values were converted to plain JSON
+    assert isinstance(s.results["c"]["first"], list) and isinstance(s.results["c"]["max"], float)
