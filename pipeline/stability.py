@@ -314,6 +314,29 @@ def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]
     return out
 
 
+def _normal_only(D: sp.spmatrix, b: np.ndarray, col_vertex: np.ndarray,
+                 tol: float = 1e-10) -> np.ndarray | None:
+    """An exact solution using normal forces only (one column per vertex), or None.
+
+    The mean of a vertex's pyramid columns is its normal direction, so a frictionless
+    equilibrium is one with equal weights on a vertex's columns.  It has an eighth of
+    the unknowns: a cheap certificate of E = 0 before the full problem.
+    """
+    from scipy.optimize import nnls
+
+    if len(col_vertex) == 0:
+        return None if np.linalg.norm(b) > tol else np.zeros(0)
+    vert, inv = np.unique(col_vertex, return_inverse=True)
+    per = np.bincount(inv, minlength=len(vert)).astype(float)
+    agg = sp.csc_matrix((np.ones(len(inv)) / per[inv], (np.arange(len(inv)), inv)),
+                        shape=(len(inv), len(vert)))
+    Dn = (D @ agg).toarray()
+    x, res = nnls(Dn, b, maxiter=50 * max(len(vert), 10))
+    if res > tol:
+        return None
+    return (x / per)[inv]
+
+
 def _solve_nnls(D: sp.spmatrix, b: np.ndarray) -> np.ndarray:
     from scipy.optimize import nnls
 
@@ -436,6 +459,11 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
         rhs = system.b[rows]
         choice = backend
         if choice == "auto":
+            x = _normal_only(sub, rhs, system.col_vertex[cols])
+            if x is not None:
+                used.add("normal")
+                lam[cols] = x
+                continue
             choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"
         if choice == "nnls":
             x = _solve_nnls(sub, rhs)
