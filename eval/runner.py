@@ -14,7 +14,8 @@ One job: execute a list of :class:`Task` and keep one JSON record per task.
   the others go on.
 * **Resumable.**  Each record is written atomically to ``out/tasks/<task-id>.json`` as soon
   as the task ends; a rerun loads the records already there (same function, arguments and
-  seed) instead of running those tasks again.  Failed tasks are run again.
+  seed) instead of running those tasks again.  Failed tasks are run again.  The code
+  itself is not part of that key: after changing a task's code, use a fresh folder.
 
 Record files hold no timings, so the same tasks and seed give byte-identical records;
 timings go to ``out/timing.json``.
