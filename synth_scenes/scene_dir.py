@@ -95,8 +95,37 @@ def make_scene_dir(family: str, out: str | os.PathLike, seed: int = 0, *, views:
     scan = scan_arrangement(arr, scan_rng, views=views, noise=noise, intrinsics=intrinsics,
                             renderer=renderer, view_ranges=view_ranges)
     out.mkdir(parents=True, exist_ok=True)
+    _remove_stale_views(out / "scan", views)
     write_scan(scan, out / "scan")
     write_arrangement(arr, out / "scene.json")
     gt = GroundTruth(arr, gt.family, gt.options, gt.attempts, gt.validation, gt.status,
                      gt.seconds, gt.rejected)
     return SceneDir(out, gt, int(len(scan.points)), views)
+
+
+#: the per-view files of a scan folder (``simulate.scan.write_scan``)
+VIEW_FILES = ("color.png", "depth.png", "instance.png", "intrinsics.json", "camera_pose.json",
+              "points.ply")
+
+
+def _remove_stale_views(scan_dir: Path, views: int) -> None:
+    """Delete view files an earlier run with another ``--views`` left in ``scan_dir``.
+
+    Only the names :func:`simulate.scan.write_scan` writes are touched: ``view<k>/`` for
+    ``k >= views`` (all of them when ``views == 1``), and the top-level per-view images
+    when ``views > 1`` (the top-level ``points.ply`` is rewritten either way).
+    """
+    import re
+
+    if not scan_dir.is_dir():
+        return
+    for sub in scan_dir.iterdir():
+        m = re.fullmatch(r"view(\d+)", sub.name)
+        if m and sub.is_dir() and (views == 1 or int(m.group(1)) >= views):
+            for name in VIEW_FILES:
+                (sub / name).unlink(missing_ok=True)
+            if not any(sub.iterdir()):          # foreign files: leave the folder
+                sub.rmdir()
+    if views > 1:
+        for name in VIEW_FILES[:-1]:
+            (scan_dir / name).unlink(missing_ok=True)

@@ -124,3 +124,17 @@ def test_bad_scan_settings(tmp_path):
         make_scene_dir("chair", tmp_path / "x", noise="tof")
     with pytest.raises(InputError, match="--renderer"):
         make_scene_dir("chair", tmp_path / "x", renderer="blender")
+
+
+def test_rerun_with_other_views_leaves_no_stale_files(tmp_path):
+    out = tmp_path / "re"
+    make_scene_dir("chair", out, seed=1, views=2, noise="none")
+    assert (out / "scan" / "view1" / "depth.png").is_file()
+    (out / "scan" / "view1" / "notes.txt").write_text("mine")
+    make_scene_dir("chair", out, seed=1, views=1, noise="none")
+    assert not (out / "scan" / "view0").exists()
+    assert sorted(p.name for p in (out / "scan" / "view1").iterdir()) == ["notes.txt"]
+    assert (out / "scan" / "depth.png").is_file()
+    make_scene_dir("chair", out, seed=1, views=2, noise="none")
+    assert not (out / "scan" / "depth.png").exists()
+    assert (out / "scan" / "view0" / "depth.png").is_file()
