@@ -249,3 +249,20 @@ def test_validate_family_rows_and_table():
         assert 6 <= r["cuboids"] <= 8 and r["objects"] == 1 and r["attempts"] >= 1
     table = validity_table(rows)
     assert "| chair | 0-1 | " in table and "| 2/2 | 2/2 | 2/2 |" in table
+
+
+@pytest.mark.parametrize("name", list(FAMILIES))
+def test_contacts_by_construction_property(name):
+    """Any seed: the contacts listed by construction are the geometric ones, no overlap."""
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+
+    @settings(max_examples=12, deadline=None, derandomize=True)
+    @given(st.integers(min_value=0, max_value=2**32 - 1))
+    def check(seed):
+        arr = make(name, np.random.default_rng(seed))
+        cs = find_contacts(arr)
+        assert cs.penetrations == ()
+        assert {tuple(sorted(p)) for p in cs.pairs} == {c.key for c in arr.contacts}
+
+    check()
