@@ -62,3 +62,15 @@ def test_small_run_writes_everything(tmp_path: Path) -> None:
     first = (tmp_path / "agreement.csv").read_bytes()
     assert agreement.run(args) == 0
     assert (tmp_path / "agreement.csv").read_bytes() == first
+
+
+@pytest.mark.slow
+def test_agreement_outside_the_band_at_least_99_percent(tmp_path: Path) -> None:
+    """The issue's target on 200 arrangements (the README quotes the 500-case run)."""
+    args = argparse.Namespace(out=tmp_path, seed=0, n=200, workers=2, dask=None, quick=False,
+                              stream=io.StringIO())
+    assert agreement.run(args) == 0
+    s = json.loads((tmp_path / "summary.json").read_text())
+    for name, pair in s["pairs"].items():
+        assert pair["agree_outside"] >= 0.99, (name, pair)
+    assert s["n_band"] < 0.1 * s["n"]
