@@ -206,3 +206,26 @@ def test_each_term_changes_the_image(term):
 def test_only_rejects_unknown_terms():
     with pytest.raises(ValueError, match="unknown noise terms"):
         KinectNoise.only("gaussian")
+
+
+def test_rendered_shadow_falls_beside_the_occluder_on_the_wall():
+    """Through the renderer: a box 1 m in front of a wall at 2 m casts its projector shadow
+    on the wall, immediately left of the box (projector to the camera's right)."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from pipeline.model import Arrangement, box
+    from simulate.scan import render
+
+    arr = Arrangement((box("box", (0.0, 0.0, 1.0), (0.3, 0.3, 0.3)),
+                       box("wall", (0.0, 0.0, 2.05), (6.0, 6.0, 0.1))))
+    f = render(arr, INTR, np.eye(4))
+    shadow = projector_shadow(f.depth, INTR, 0.075)
+    assert shadow.any()
+    assert (f.instance[shadow] == 2).all()  # only wall pixels
+    width = INTR.fx * 0.075 * (1 / 0.85 - 1 / 2.0)  # front face at z = 0.85
+    v, u = np.nonzero(shadow)
+    box_left = np.array([np.nonzero(f.instance[r] == 1)[0].min() for r in np.unique(v)])
+    left_of = dict(zip(np.unique(v), box_left, strict=True))
+    gap = np.array([left_of[r] for r in v]) - u  # 1 .. width pixels left of the box
+    assert gap.min() >= 1 and gap.max() <= np.ceil(width) + 1
