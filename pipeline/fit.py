@@ -25,7 +25,7 @@ SLAB_MIN_FILL = 0.7
 #: i.e. 0.0025 of the diameter; we use a coarser default for noisy Kinect depth).
 CELL_REL = 0.005
 #: Tilt of a dominant plane (degrees from horizontal/vertical) above which an object is slanted.
-SLANT_MIN_DEG = 12.0
+SLANT_MIN_DEG = 15.0
 MAX_VOXELS = 1_500_000
 #: A slab holding less than this fraction of its object's voxels or points is a speck.
 SPECK_FRACTION = 0.02
@@ -118,7 +118,8 @@ def grow_slab(S: np.ndarray, shape: tuple, seed: np.ndarray,
 
 
 def slabs(occ: np.ndarray, min_voxels: int, min_fill: float = SLAB_MIN_FILL,
-          max_slabs: int = 12, seeds: int = 5) -> list[tuple[np.ndarray, np.ndarray, int]]:
+          max_slabs: int = 12, seeds: int = 5,
+          seed_mask: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """Cover the occupied voxels of ``occ (nx, ny, nz) bool`` by greedy slabs.
 
     Each round grows slabs from the ``seeds`` densest unassigned voxels (3x3x3
@@ -133,11 +134,12 @@ def slabs(occ: np.ndarray, min_voxels: int, min_fill: float = SLAB_MIN_FILL,
 
     left = occ.copy()
     out = []
-    total = int(occ.sum())
     while left.sum() >= max(min_voxels, 1) and len(out) < max_slabs:
         S = _sat(left)
         dens = uniform_filter(left.astype(np.float32), size=3, mode="constant")
         dens[~left] = -1
+        if seed_mask is not None:  # grow only from observed voxels
+            dens[~seed_mask] = -1
         best = None
         for _ in range(seeds):
             f = int(np.argmax(dens))  # first maximum: deterministic
@@ -154,8 +156,8 @@ def slabs(occ: np.ndarray, min_voxels: int, min_fill: float = SLAB_MIN_FILL,
         _, lo, hi, cnt = best
         out.append((lo, hi, cnt))
         left[lo[0]:hi[0] + 1, lo[1]:hi[1] + 1, lo[2]:hi[2] + 1] = False
-        if left.sum() < 0.04 * total:
-            break
+        if seed_mask is not None:
+            seed_mask = seed_mask & left
     return out
 
 
@@ -167,6 +169,42 @@ def _column_fill(occ: np.ndarray) -> np.ndarray:
     above = np.flip(np.cumsum(np.flip(occ, 2), 2), 2) > 0
     above[:, :, : zs[0]] = False
     return occ | above
+
+
+def evidence_fill(surf: np.ndarray, hidden: np.ndarray) -> np.ndarray:
+    """Occupancy from surface voxels and hidden ones that observed surface supports.
+
+    A hidden voxel (behind the object's own surface) counts as occupied only when both
+    the x-slice and the y-slice through it hold an observed voxel at its height or
+    below: a box seen from the front and side fills, the space under a table top does
+    not (only where its legs are).
+    """
+    ev_x = np.cumsum(surf.any(axis=1), axis=1) > 0  # (nx, nz): seen at or below z in slice x
+    ev_y = np.cumsum(surf.any(axis=0), axis=1) > 0  # (ny, nz)
+    return surf | (hidden & ev_x[:, None, :] & ev_y[None, :, :])
+
+
+def merge_slabs(boxes: list[tuple[np.ndarray, np.ndarray]], loose: np.ndarray,
+                min_fill: float = SLAB_MIN_FILL) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Merge slabs of one object whose joint bounding box is still more than ``min_fill``
+    occupied when every hidden voxel counts (a box seen only from the front and top
+    gives a front and a top slab: they merge; a table top and its legs do not)."""
+    boxes = [(np.asarray(a), np.asarray(b)) for a, b in boxes]
+    S = _sat(loose)
+    while len(boxes) > 1:
+        best = None
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                lo = np.minimum(boxes[i][0], boxes[j][0])
+                hi = np.maximum(boxes[i][1], boxes[j][1])
+                fill = _boxsum(S, lo, hi) / float(np.prod(hi - lo + 1))
+                if fill > min_fill and (best is None or fill > best[0]):
+                    best = (fill, i, j, lo, hi)
+        if best is None:
+            break
+        _, i, j, lo, hi = best
+        boxes = [b for k, b in enumerate(boxes) if k not in (i, j)] + [(lo, hi)]
+    return boxes
 
 
 def fit_upright(points: np.ndarray, cell: float, *,
@@ -193,18 +231,19 @@ def fit_upright(points: np.ndarray, cell: float, *,
         c *= 1.25
     dims = np.maximum(np.ceil(ext / c).astype(int), 1)
     idx = np.minimum(np.floor((local - pmin) / c).astype(int), dims - 1)
-    occ = np.zeros(tuple(dims), dtype=bool)
-    occ[idx[:, 0], idx[:, 1], idx[:, 2]] = True
+    surf = np.zeros(tuple(dims), dtype=bool)
+    surf[idx[:, 0], idx[:, 1], idx[:, 2]] = True
     if solid is not None:
         g = np.stack(np.meshgrid(*[np.arange(d) for d in dims], indexing="ij"), -1).reshape(-1, 3)
         centers = (pmin + (g + 0.5) * c) @ R.T
-        occ |= np.asarray(solid(centers), bool).reshape(occ.shape)
+        hidden = np.asarray(solid(centers), bool).reshape(surf.shape) & ~surf
+        occ, loose = evidence_fill(surf, hidden), surf | hidden
     else:
-        occ = _column_fill(occ)
+        occ = loose = _column_fill(surf)
     out = []
-    min_vox = max(min_voxels, int(SPECK_FRACTION * occ.sum()))
+    min_vox = max(min_voxels, int(SPECK_FRACTION * surf.sum()))
     min_pts = max(min_points, int(SPECK_FRACTION * len(points)))
-    for lo, hi, _cnt in slabs(occ, min_vox):
+    for lo, hi in merge_slabs([(lo, hi) for lo, hi, _ in slabs(occ, min_vox, seed_mask=surf)], loose):
         blo = np.maximum(pmin + lo * c, pmin)
         bhi = np.minimum(pmin + (hi + 1) * c, pmax)
         size = np.maximum(bhi - blo, 0.5 * c)
@@ -231,7 +270,8 @@ def dominant_planes(points: np.ndarray, threshold: float, rng: np.random.Generat
     rest = np.abs(points @ n1 + o1) >= threshold
     out = [n1]
     if rest.sum() >= 30:
-        n2, _, c2 = ransac_plane(points[rest], threshold, rng, hypotheses=200, score_sample=3000)
+        n2, _, c2 = ransac_plane(points[rest], threshold, rng, hypotheses=600, score_sample=3000,
+                                 orthogonal_to=n1)
         if c2 >= 0.5 * min_fraction * len(points) and abs(n1 @ n2) < 0.26:
             out.append(n2)
     return out
@@ -239,16 +279,13 @@ def dominant_planes(points: np.ndarray, threshold: float, rng: np.random.Generat
 
 def slant_frame(normals: list[np.ndarray]) -> np.ndarray | None:
     """Box frame (3, 3) from dominant plane normals when the first one is tilted, else None."""
-    if not normals:
+    if len(normals) < 2:  # the paper's rule: two orthogonal planes give a slanted frame
         return None
     n1 = normals[0]
     tilt = np.degrees(np.arccos(min(1.0, abs(n1[2]))))
     if not (SLANT_MIN_DEG < tilt < 90 - SLANT_MIN_DEG):
         return None
-    if len(normals) > 1:
-        a2 = normals[1] - (normals[1] @ n1) * n1
-    else:
-        a2 = np.cross(n1, [0.0, 0.0, 1.0])
+    a2 = normals[1] - (normals[1] @ n1) * n1
     a2 /= np.linalg.norm(a2)
     R = np.stack([n1, a2, np.cross(n1, a2)], axis=1)
     return R
@@ -260,6 +297,10 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     """Cuboids for one object: one slanted box, or ground-aligned slabs."""
     if len(points) < min_points:
         return []
+    from .segment import point_spacing
+
+    # a voxel must catch a point on every sampled surface, whatever the caller's cell
+    cell = max(cell, 3.0 * point_spacing(points))
     thr = plane_threshold if plane_threshold is not None else 1.0 * cell
     R = slant_frame(dominant_planes(points, thr, rng))
     if R is not None:

@@ -18,11 +18,13 @@ from .fit import CELL_REL, fit_object
 from .model import Arrangement, Cuboid, ObservedBox
 from .planes import find_frame, scene_scale
 from .scan_io import ScanInput
-from .segment import flying_pixels, grabcut_scribbles, segment_objects
+from .segment import flying_pixels, grabcut_scribbles, point_spacing, segment_objects
 
 SEGMENTATIONS = ("auto", "instance", "cluster")
 #: An object needs at least this fraction of the scan's points (smaller clusters are specks).
 MIN_OBJECT_FRACTION = 1e-3
+#: Smallest voxel, metres (below the depth noise of any consumer sensor).
+MIN_CELL = 0.002
 
 
 def _solid_test(scan: ScanInput, T_world_cam: np.ndarray, pix_label: np.ndarray,
@@ -95,13 +97,18 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
 
     # ---- objects
     t = step("segment")
-    diameter = scene_scale(world)
-    cell = cell_rel * diameter
     obj_mask = frame.labels == -1
     pix_label = None
     if camera:
         fly = flying_pixels(scan.depth)
         obj_mask &= ~fly[scan.pixels[:, 0], scan.pixels[:, 1]]
+    # the paper normalises the scene (its objects) to the unit sphere: the cell is relative
+    # to the extent of what is not ground or wall
+    diameter = scene_scale(world[obj_mask]) if obj_mask.sum() >= 100 else scene_scale(world)
+    # ... but never finer than the sampling (a voxel must catch points on every surface)
+    spacing = point_spacing(world[obj_mask]) if obj_mask.sum() >= 100 else 0.0
+    min_cell = max(MIN_CELL, 1.5 * spacing)
+    cell = max(cell_rel * diameter, min_cell)
     instance = scan.instance if segmentation != "cluster" else None
     if segmentation == "instance" and (instance is None or not np.any(instance > 0)):
         raise InputError(f"{scan.source}: --segmentation instance but the input has no instance ids")
@@ -123,6 +130,8 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     labels, names = segment_objects(world, obj_mask, cell, instance=inst, pixels=scan.pixels,
                                     scribble_labels=scribble_labels,
                                     min_points=max(30, int(MIN_OBJECT_FRACTION * len(world))))
+    if (labels >= 0).sum() >= 100:  # the cell from what was segmented (stray points gone)
+        cell = max(cell_rel * scene_scale(world[labels >= 0]), min_cell)
     if obj_names_map:
         names = [obj_names_map.get(int(nm[4:]), nm) if nm.startswith("inst") else nm for nm in names]
     timings["segment"] = time.perf_counter() - t

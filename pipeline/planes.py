@@ -25,6 +25,8 @@ WALL_MAX_TILT_DEG = 12.0
 #: The ground is the lowest upward plane holding at least this share of the largest
 #: upward plane's points (so a sofa seat below a table top does not win).
 GROUND_MIN_SHARE = 0.8
+#: A large horizontal plane this high above the ground with nothing above it is a ceiling.
+CEILING_MIN_HEIGHT = 1.8
 #: A vertical plane is a wall only if at most this fraction of the points lie behind it
 #: (a box face has the rest of the box behind it).
 WALL_MAX_BEHIND = 0.06
@@ -54,7 +56,8 @@ class SceneFrame:
     ground : Support
     walls : tuple of Support
     labels : (n,) int
-        Per input point: -1 not on a plane, 0 ground, k >= 1 wall k-1, -2 below ground.
+        Per input point: -1 not on a plane, 0 ground, k >= 1 wall k-1, -2 below ground,
+        -3 ceiling (and above).
     planes : list of Plane
         Every plane RANSAC found (input frame), for the report.
     threshold : float
@@ -84,12 +87,15 @@ def fit_plane_lsq(points: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def ransac_plane(points: np.ndarray, threshold: float, rng: np.random.Generator,
-                 hypotheses: int = 300, score_sample: int = 6000) -> tuple[np.ndarray, float, int]:
+                 hypotheses: int = 300, score_sample: int = 6000,
+                 orthogonal_to: np.ndarray | None = None,
+                 max_cos: float = 0.26) -> tuple[np.ndarray, float, int]:
     """One RANSAC plane, all hypotheses at once (vectorised numpy).
 
     ``hypotheses`` random point triples give candidate planes; each is scored by its
     inlier count on a random subsample of ``score_sample`` points; the best one is
-    returned as (unit normal, offset, inlier count on all ``points``).
+    returned as (unit normal, offset, inlier count on all ``points``).  With
+    ``orthogonal_to`` only planes whose normal makes |cos| < ``max_cos`` with it count.
     """
     n = len(points)
     tri = rng.integers(0, n, size=(hypotheses, 3))
@@ -98,6 +104,11 @@ def ransac_plane(points: np.ndarray, threshold: float, rng: np.random.Generator,
     ln = np.linalg.norm(nrm, axis=1)
     ok = ln > 1e-12
     nrm, a = nrm[ok] / ln[ok, None], a[ok]
+    if orthogonal_to is not None:
+        keep = np.abs(nrm @ orthogonal_to) < max_cos
+        if not keep.any():
+            return np.asarray(orthogonal_to, float), 0.0, 0
+        nrm, a = nrm[keep], a[keep]
     off = -np.einsum("ij,ij->i", nrm, a)
     sub = points[rng.integers(0, n, size=min(score_sample, n))]
     score = (np.abs(sub @ nrm.T + off) < threshold).sum(0)
@@ -154,13 +165,13 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         A known camera pose (synthetic scenes): kept as is; the ground is still detected.
     camera_frame : bool
         The input frame is a camera (its origin is the eye).
-    threshold : RANSAC inlier distance, metres; default 0.4 % of the scene diameter
-        (at least 6 mm).
+    threshold : RANSAC inlier distance, metres; default 0.3 % of the scene diameter
+        (5 to 20 mm).
     """
     if len(points) < 50:
         raise InputError("fewer than 50 valid points: nothing to fit (empty or all-NaN scan?)")
     scale = scene_scale(points)
-    thr = threshold if threshold is not None else max(0.004 * scale, 0.006)
+    thr = threshold if threshold is not None else float(np.clip(0.003 * scale, 0.005, 0.02))
     if T_world_input is not None:
         prior = T_world_input[:3, :3].T @ np.array([0.0, 0.0, 1.0])
     elif up is not None:
@@ -217,6 +228,14 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
     hz = ground.signed_distance(world)
     labels[np.abs(hz) < 1.5 * thr] = 0
     labels[hz <= -1.5 * thr] = -2
+    # ceilings: large horizontal planes high above the ground with (almost) nothing above
+    for p in cands:
+        if p is g:
+            continue
+        pt_w = transform(T, (-p.offset * p.normal)[None])[0]
+        h = float(ground.signed_distance(pt_w[None])[0])
+        if h > CEILING_MIN_HEIGHT and (hz > h + 1.5 * thr).mean() < WALL_MAX_BEHIND:
+            labels[hz > h - 3.0 * thr] = -3
     walls = []
     sin_w = np.sin(np.radians(WALL_MAX_TILT_DEG))
     cam_w = T[:3, 3]

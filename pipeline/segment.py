@@ -38,6 +38,17 @@ def voxel_keys(points: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]
     return rep, inv
 
 
+def point_spacing(points: np.ndarray, rng_seed: int = 0, sample: int = 5000) -> float:
+    """Median nearest-neighbour distance of ``points (n, 3)`` (on a fixed subsample)."""
+    from scipy.spatial import cKDTree
+
+    if len(points) < 3:
+        return 0.0
+    idx = np.random.default_rng(rng_seed).choice(len(points), min(sample, len(points)), replace=False)
+    d, _ = cKDTree(points).query(points[np.sort(idx)], k=2)
+    return float(np.median(d[:, 1]))
+
+
 def cluster(points: np.ndarray, cell: float, eps_cells: float = 2.6,
             min_voxels: int = 3) -> np.ndarray:
     """Proximity clusters of ``points (n, 3)``: (n,) int labels 0..K-1, -1 noise.
@@ -67,6 +78,21 @@ def _canonical(lab: np.ndarray) -> np.ndarray:
     remap[ids[order]] = np.arange(len(ids))
     out = lab.copy()
     out[valid] = remap[lab[valid]]
+    return out
+
+
+def _main_components(world: np.ndarray, sel: np.ndarray, cell: float,
+                     keep_share: float = 0.05) -> np.ndarray:
+    """Drop stray points of a mask (mislabelled edge pixels): keep the proximity clusters
+    holding at least ``keep_share`` of the largest one."""
+    idx = np.nonzero(sel)[0]
+    lab = cluster(world[idx], cell)
+    if not (lab >= 0).any():
+        return sel
+    counts = np.bincount(lab[lab >= 0])
+    good = np.nonzero(counts >= keep_share * counts.max())[0]
+    out = np.zeros_like(sel)
+    out[idx[np.isin(lab, good)]] = True
     return out
 
 
@@ -155,6 +181,7 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
         for i in ids:
             sel = object_mask & (instance == i)
             if sel.sum() >= min_points:
+                sel = _main_components(world, sel, cell)
                 labels[sel] = len(names)
                 names.append(f"inst{int(i)}")
         return labels, names

@@ -1,8 +1,8 @@
 """``unseen run INPUT --out DIR``: scan -> arrangement.
 
 Stage ``initial`` (section 4.1) writes ``arrangement.json`` (the initial cuboids, no
-contacts), ``overlay.png``, ``view.png`` and ``report.md``.  The full pipeline calls
-:func:`run_initial` and continues from its result.
+contacts), ``overlay.png``, ``view.png`` and ``report.md``.  The full pipeline (the
+default, :mod:`eval.run_full`) calls :func:`run_initial` and continues from its result.
 """
 
 from __future__ import annotations
@@ -55,8 +55,16 @@ frames, y down), --up z (z-up clouds).
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("input", help="scene dir, RGB-D folder, depth file, or .ply/.pcd/.npz cloud")
     p.add_argument("--out", required=True, help="output folder (created)")
-    p.add_argument("--stage", default="initial", choices=["initial", "full"],
-                   help="initial: section 4.1 only (default for now)")
+    p.add_argument("--stage", default="full", choices=["initial", "full"],
+                   help="full (default): initial cuboids, then extension, contact types and "
+                        "refinement; initial: section 4.1 only")
+    p.add_argument("--budget", type=float, default=10.0,
+                   help="seconds for the contact search (the best found so far is returned)")
+    p.add_argument("--mu", type=float, default=0.7, help="friction coefficient (default 0.7)")
+    p.add_argument("--check-engines", action="store_true",
+                   help="settle the result in MuJoCo and PyBullet and report their verdicts")
+    p.add_argument("--no-symmetry", action="store_true",
+                   help="do not hallucinate wholly occluded parts (fourth legs) by symmetry")
     p.add_argument("--color", help="colour image file (relative to INPUT folder or absolute)")
     p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat)")
     p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
@@ -163,8 +171,10 @@ def report_markdown(arr, report: dict, command: str, seed: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.stage != "initial":
-        raise InputError(f"--stage {args.stage}: not yet available; use --stage initial")
+    if args.stage == "full":
+        from eval.run_full import run_full
+
+        return run_full(args, run_initial)
     from pipeline.progress import Progress
 
     with Progress(None, "unseen run") as bar:
