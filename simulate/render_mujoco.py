@@ -18,6 +18,7 @@ library is found (or when the caller sets it).
 
 from __future__ import annotations
 
+import atexit
 import colorsys
 import os
 import threading
@@ -312,6 +313,21 @@ class _Pool:
 #: Pools keyed by (pid, thread, width, height): a GL context is current in one thread
 #: only, and a forked child must not use its parent's.
 _POOLS: dict[tuple[int, int, int, int], _Pool] = {}
+
+
+def _free_pools() -> None:
+    """Free this process's GL contexts before interpreter shutdown (OSMesa's destructor
+    otherwise fails noisily once PyOpenGL is half torn down)."""
+    pid = os.getpid()
+    for key in [k for k in _POOLS if k[0] == pid]:
+        pool = _POOLS.pop(key)
+        try:
+            pool.close()
+        except Exception:  # a context of another thread may not be current-able here
+            pass
+
+
+atexit.register(_free_pools)
 
 
 def _get_pool(n_boxes: int, width: int, height: int) -> _Pool:
