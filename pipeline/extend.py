@@ -126,7 +126,7 @@ def pair_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
     gj = _face_gaps(C[j], R[j], H[j], corners[i])
     edges: list[Edge] = []
     exts = []  # (pair, which, axis, side, length)
-    for which, g, (src, dst) in ((0, gi, (i, j)), (1, gj, (j, i))):
+    for which, g in ((0, gi), (1, gj)):
         flat = g.reshape(len(i), 6)
         best = np.argmax(flat, axis=1)
         length = flat[np.arange(len(i)), best]

@@ -102,7 +102,10 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
         kwargs.update(A=A, b=np.zeros(len(A)))
     if len(G):
         kwargs.update(G=G, h=h)
-    x = solve_qp(np.eye(6), -delta0, solver="clarabel", **kwargs)
+    import scipy.sparse as sp
+
+    kwargs = {k: (sp.csc_matrix(v) if k in ("A", "G") else v) for k, v in kwargs.items()}
+    x = solve_qp(sp.identity(6, format="csc"), -delta0, solver="clarabel", **kwargs)
     return None if x is None else np.asarray(x)
 
 

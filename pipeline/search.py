@@ -17,8 +17,11 @@ fixed, no completion of it can be stable: the whole subtree is pruned.  Edges ar
 decided one at a time in a fixed order (the most expensive first), each trying its
 options cheapest first, so the first leaf reached is a greedy solution and later
 leaves only replace it when strictly cheaper; a node whose decided edges already cost
-as much as the best leaf is cut.  Independent groups (cuboids that no edge connects)
-are searched separately, stability results are cached per assignment, and contact
+as much as the best leaf is cut.  A greedy solution comes first (:meth:`_Group.greedy`:
+relax fixed to touch keeping extensions, then shed volume; then single-edge moves to
+cheaper options), so the bound prunes hard from the start; groups of up to
+``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  Independent groups
+(cuboids that no edge connects) are searched separately, stability results are cached per assignment, and contact
 geometry per set of extensions (type changes reuse it).  The search has a time budget
 and always returns the best arrangement found; when even the root is unstable (a
 support was missed), the root is returned, marked unstable, with the boxes that move.
@@ -39,6 +42,13 @@ from .model import Arrangement, Contact, StabilitySummary
 from .stability import check_stability
 
 log = logging.getLogger(__name__)
+
+#: Groups with at most this many edges are searched exhaustively (within the budget);
+#: larger ones get a greedy dive followed by single-edge improvements.
+EXACT_MAX_EDGES = 10
+#: The search accepts an arrangement only if it also stands with gravity tilted by this
+#: many degrees (see ``check_stability(tilt_deg=...)``): no knife-edge explanations.
+ROBUST_TILT_DEG = 2.0
 
 
 @dataclass
@@ -109,7 +119,7 @@ class _Group:
     # -- evaluation
     def geometry(self, assignment: tuple[int, ...]) -> tuple[Arrangement, ContactSet]:
         exts = []
-        for e, opts, i in zip(self.edges, self.options, assignment):
+        for _e, opts, i in zip(self.edges, self.options, assignment):
             exts.extend(opts[i].extensions)
         key = tuple(sorted((x.box, x.axis, x.side, x.length) for x in exts))
         hit = self.geom_cache.get(key)
@@ -142,7 +152,8 @@ class _Group:
         else:
             arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
             try:
-                res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs)
+                res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
+                                      tilt_deg=ROBUST_TILT_DEG)
             except InputError:  # a fixed pair that does not touch in this geometry
                 out = (False, "detached")
             else:
@@ -161,7 +172,7 @@ class _Group:
                 k = (x.box, x.axis, x.side)
                 exts[k] = max(exts.get(k, (0.0, x))[0], x.length), x
         vol = 0.0
-        for (box, axis, _side), (length, x) in exts.items():
+        for (box, axis, _side), (length, _x) in exts.items():
             s = self.full.sizes[box]
             other = [k for k in range(3) if k != axis]
             vol += length * s[other[0]] * s[other[1]]
@@ -171,7 +182,7 @@ class _Group:
     def root(self) -> tuple[int, ...]:
         """Every edge at its most supportive option that does not interpenetrate alone."""
         out = []
-        for e, opts in zip(self.edges, self.options):
+        for opts in self.options:
             fixed = [n for n, o in enumerate(opts) if o.type == "fixed"]
             fixed.sort(key=lambda n: opts[n].volume)
             out.append(fixed[0] if fixed else 0)
@@ -238,8 +249,116 @@ class _Group:
                     self.stats.budget_spent = True
                     return
 
-        dive(0, list(root))
+        greedy = self.improve(self.greedy(root, deadline), deadline)
+        best[0], best[1], best[2] = greedy, self.cost(greedy), self.evaluate(greedy)[1]
+        if n <= EXACT_MAX_EDGES:  # prove (or improve on) the greedy answer exhaustively
+            dive(0, list(root))
+        best[0] = self.siblings(best[0], deadline)
+        best[2] = self.evaluate(best[0])[1]
         return best[0], True, best[2]
+
+    def greedy(self, root: tuple[int, ...], deadline: float) -> tuple[int, ...] | None:
+        """Two greedy passes that follow the objective's priorities.
+
+        Pass 1 (fewest fixed): every edge in turn tries its cheapest ``touch`` option (or
+        ``none`` for a pair already fused by nothing); one that keeps the arrangement
+        stable is kept.  Extensions stay in place, so support is not thrown away early.
+        Pass 2 (least volume): every edge in turn tries the options of the same type
+        count with less volume (``none`` included).
+        """
+        current = list(root)
+
+        def attempt(level: int, i: int) -> bool:
+            nonlocal current
+            if time.perf_counter() > deadline:
+                self.stats.budget_spent = True
+                return False
+            trial = list(current)
+            trial[level] = i
+            self.stats.nodes += 1
+            ok, res = self.evaluate(tuple(trial))
+            if ok:
+                current = trial
+            elif res == "penetration":
+                self.stats.pruned_penetration += 1
+            else:
+                self.stats.pruned_unstable += 1
+            return ok
+
+        for level, (e, opts) in enumerate(zip(self.edges, self.options)):
+            if _option_cost(e, opts[current[level]])[0] == 0:
+                continue
+            touch = [n for n, o in enumerate(opts) if o.type == "touch"]
+            for i in sorted(touch, key=lambda n: opts[n].volume):
+                if attempt(level, i):
+                    break
+        for level, (e, opts) in enumerate(zip(self.edges, self.options)):
+            here = _option_cost(e, opts[current[level]])
+            for i in range(len(opts)):  # cheapest first
+                c = _option_cost(e, opts[i])
+                if c[0] <= here[0] and c[1] < here[1] and attempt(level, i):
+                    break
+        self.stats.leaves += 1
+        return tuple(current)
+
+    def siblings(self, assignment: tuple[int, ...], deadline: float) -> tuple[int, ...]:
+        """Treat repeated parts alike: a part left hanging whose sibling (same object,
+        same size within 10 %, same support) was extended to that support gets the same
+        kind of contact, when that stays stable.  Four legs of a table all reach the
+        floor even though two diagonal ones would balance it (the symmetry prior of the
+        paper's section 5.1 (ii)); this may add volume on purpose."""
+        current = list(assignment)
+        full = self.full
+        for k, (e, opts) in enumerate(zip(self.edges, self.options)):
+            if not isinstance(e.b, str) or opts[current[k]].type != "none":
+                continue
+            me = full.cuboids[e.a]
+            for m, (f, fopts) in enumerate(zip(self.edges, self.options)):
+                if m == k or f.b != e.b or fopts[current[m]].type == "none":
+                    continue
+                other = full.cuboids[f.a]
+                if (me.object is None or me.object != other.object
+                        or not np.allclose(np.sort(me.size), np.sort(other.size), rtol=0.1)):
+                    continue
+                want = fopts[current[m]].type
+                for i, o in enumerate(opts):
+                    if o.type != want or time.perf_counter() > deadline:
+                        continue
+                    trial = list(current)
+                    trial[k] = i
+                    self.stats.nodes += 1
+                    if self.evaluate(tuple(trial))[0]:
+                        current = trial
+                        break
+                break
+        return tuple(current)
+
+    def improve(self, assignment: tuple[int, ...], deadline: float) -> tuple[int, ...]:
+        """Single-edge moves to cheaper options while any lowers the cost (local optimum)."""
+        current = tuple(assignment)
+        cost = self.cost(current)
+        changed = True
+        while changed and time.perf_counter() < deadline:
+            changed = False
+            for level in range(len(self.edges)):
+                for i in range(len(self.options[level])):
+                    if i == current[level]:
+                        continue
+                    trial = list(current)
+                    trial[level] = i
+                    trial = tuple(trial)
+                    c = self.cost(trial)
+                    if c >= cost:
+                        continue
+                    self.stats.nodes += 1
+                    ok, _ = self.evaluate(trial)
+                    if ok:
+                        current, cost, changed = trial, c, True
+                        break
+                if time.perf_counter() > deadline:
+                    self.stats.budget_spent = True
+                    break
+        return current
 
 
 def _groups(K: int, edges: list[Edge]) -> list[tuple[list[int], list[Edge]]]:

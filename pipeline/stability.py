@@ -477,7 +477,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
 # ------------------------------------------------------------------------- entry point
 def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None,
                     backend: str = "auto", side_friction: bool = False,
-                    contacts: ContactSet | None = None) -> StabilityResult:
+                    contacts: ContactSet | None = None, tilt_deg: float = 0.0
+                    ) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -494,6 +495,9 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         Allow friction on vertical face-to-face contacts (plain statics; see the trap).
     contacts : ContactSet, optional
         Precomputed contacts of ``arr``.
+    tilt_deg : float
+        When > 0, also require equilibrium with gravity tilted by this angle towards
+        +-x and +-y (a robustness margin used by the search).
 
     Returns
     -------
@@ -514,7 +518,24 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             fixed_mask[lookup[c.key]] = True
     system = build_system(arr, contacts, bodies, mu, side_friction, fixed_mask)
     lam, used = solve_energy(system, backend)
-    return _result(arr, contacts, bodies, system, lam, threshold, used, mu)
+    result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
+    if tilt_deg > 0 and result.stable:
+        # robustness: the arrangement must also stand when gravity leans by tilt_deg
+        # towards +-x and +-y (rules out knife-edge solutions such as a table on two
+        # diagonal legs, which a volume-minimising search would otherwise pick)
+        t = np.radians(tilt_deg)
+        F = len(system.free)
+        for hx, hy in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+            b = system.b.copy()
+            b[6 * np.arange(F) + 0] = -np.sin(t) * hx
+            b[6 * np.arange(F) + 1] = -np.sin(t) * hy
+            b[6 * np.arange(F) + 2] = np.cos(t)
+            tilted = replace(system, b=b)
+            lam_t, used_t = solve_energy(tilted, backend)
+            res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
+            if not res_t.stable:
+                return replace(res_t, status="not robust")
+    return result
 
 
 def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> StabilityResult:

@@ -1,0 +1,143 @@
+"""Candidate extensions, branch and bound, refinement and symmetry (paper 4.2-4.3)."""
+
+import numpy as np
+import pytest
+
+from pipeline.camera import Intrinsics, look_at
+from pipeline.extend import DepthView, candidate_edges, prune_by_visibility
+from pipeline.imagine import imagine
+from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
+from pipeline.refine import refine
+from pipeline.search import search
+from pipeline.stability import check_stability
+
+
+def _types(arr):
+    return {tuple(sorted((c.a, c.b))): c.type for c in arr.contacts}
+
+
+def test_figure8_floating_box_explained_by_fewest_fixed_then_least_volume():
+    # B floats 0.2 m above A (its bottom was occluded). Extending B down (0.6 x 0.6 x 0.2)
+    # adds less volume than extending A up (1 x 1 x 0.2); both need no fixed joint.
+    arr = Arrangement((box("A", (0, 0, 0.25), (1, 1, 0.5)), box("B", (0.1, 0, 0.85), (0.6, 0.6, 0.3))),
+                      (ground(),))
+    assert not check_stability(arr).stable
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    assert res.added_volume == pytest.approx(0.6 * 0.6 * 0.2, rel=1e-9)
+    out = res.arrangement
+    np.testing.assert_allclose(out.cuboid("A").size, [1, 1, 0.5])
+    np.testing.assert_allclose(out.cuboid("B").size, [0.6, 0.6, 0.5])
+    assert _types(out) == {("A", "B"): "touch", ("A", "ground"): "touch"}
+
+
+def _table(leg_gap: float, legs=(0, 1, 2, 3)):
+    top = box("top", (0, 0, 0.75), (1.2, 0.8, 0.04), object="table")
+    corners = [(-0.55, -0.35), (0.55, -0.35), (-0.55, 0.35), (0.55, 0.35)]
+    cubs = [top]
+    for k in legs:
+        x, y = corners[k]
+        h = 0.73 - leg_gap
+        cubs.append(box(f"leg{k}", (x, y, 0.73 - h / 2), (0.05, 0.05, h), object="table"))
+    return Arrangement(tuple(cubs), (ground(),))
+
+
+def test_hidden_leg_bottoms_are_extended_to_the_ground():
+    arr = _table(leg_gap=0.3)
+    res = imagine(arr, budget=5)
+    out = res.arrangement
+    assert out.stability.stable
+    t = _types(out)
+    for k in range(4):
+        assert t[tuple(sorted((f"leg{k}", "ground")))] == "touch"
+        assert t[tuple(sorted((f"leg{k}", "top")))] == "fixed"  # one object: fused
+        assert out.cuboid(f"leg{k}").size[2] == pytest.approx(0.73, abs=1e-9)
+        # the observed part is kept
+        np.testing.assert_allclose(out.cuboid(f"leg{k}").observed.size, [0.05, 0.05, 0.43])
+    assert res.report["fixed_chosen"] == 0
+
+
+def _front_view(eye, target, depth: float) -> DepthView:
+    """A camera whose depth image reads ``depth`` everywhere (a far wall, nothing between)."""
+    return DepthView(np.full((480, 640), depth), Intrinsics.kinect_v1(), look_at(eye, target))
+
+
+def test_wall_shelf_must_be_fixed_to_the_wall():
+    wall = Support("wall:0", (0, 0, 0), (1, 0, 0))
+    board = box("board", (0.18, 0, 1.2), (0.3, 0.6, 0.02))  # 3 cm off the wall, nothing below
+    arr = Arrangement((board,), (ground(), wall))
+    # without a camera the cheapest explanation is a slab from the floor up to the board
+    blind = search(arr, candidate_edges(arr), budget=5)
+    assert blind.stable and blind.n_fixed == 0
+    assert blind.arrangement.cuboid("board").size[2] == pytest.approx(1.21)
+    # a camera facing the wall saw the space under the board empty: it must hang on the wall
+    view = _front_view([3.0, 0.0, 1.2], [0.0, 0.0, 1.2], 3.0)
+    edges, rejected = prune_by_visibility(arr, candidate_edges(arr), [view], margin=0.0)
+    assert rejected == 2  # touch and fixed on the floor extension
+    res = search(arr, edges, budget=5)
+    assert res.stable and res.n_fixed == 1
+    assert _types(res.arrangement) == {("board", "wall:0"): "fixed"}
+    assert res.arrangement.cuboid("board").size[0] == pytest.approx(0.33)  # grown to the wall
+
+
+def test_missed_support_returns_best_effort_marked_unstable():
+    arr = Arrangement((box("a", (0, 0, 0.5), (1, 1, 1)), box("sky", (5, 5, 3), (0.3, 0.3, 0.3))),
+                      (ground(),))
+    view = _front_view([5.0, -3.0, 1.5], [5.0, 5.0, 1.5], 20.0)  # saw under the box: empty
+    edges, _ = prune_by_visibility(arr, candidate_edges(arr), [view], margin=0.0)
+    res = search(arr, edges, budget=5)
+    assert not res.stable
+    assert res.unstable_ids == ("sky",)
+    assert res.arrangement.stability is not None and not res.arrangement.stability.stable
+    assert res.arrangement.cuboid("sky").size == pytest.approx([0.3, 0.3, 0.3])
+
+
+def test_stack_with_gaps_needs_no_fixed_joint():
+    cubs = [box(f"b{k}", (0.05 * k, 0, 0.25 + 0.55 * k), (0.6, 0.5, 0.5)) for k in range(4)]
+    arr = Arrangement(tuple(cubs), (ground(),))  # 5 cm gaps between the boxes
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    t = _types(res.arrangement)
+    assert all(v == "touch" for v in t.values())
+    assert set(t) == {("b0", "ground"), ("b0", "b1"), ("b1", "b2"), ("b2", "b3")}
+
+
+def test_visibility_rejects_extensions_into_space_seen_empty():
+    arr = Arrangement((box("A", (0, 0, 0.25), (1, 1, 0.5)), box("B", (0.1, 0, 0.85), (0.6, 0.6, 0.3))),
+                      (ground(),))
+    intr = Intrinsics.kinect_v1()
+    T = look_at([3.0, 0.0, 0.7], [0.0, 0.0, 0.7])
+    far = DepthView(np.full((480, 640), 6.0), intr, T)  # the camera saw through the gap
+    blind = DepthView(np.zeros((480, 640)), intr, T)  # no readings: says nothing
+    edges = candidate_edges(arr)
+    kept, rejected = prune_by_visibility(arr, edges, [far], margin=0.0)
+    assert rejected > 0
+    assert not any(o.extensions for e in kept for o in e.options)
+    kept2, rejected2 = prune_by_visibility(arr, edges, [blind], margin=0.0)
+    assert rejected2 == 0 and kept2 == edges
+
+
+def test_fourth_leg_is_hallucinated_by_symmetry():
+    arr = _table(leg_gap=0.0, legs=(0, 1, 2))
+    res = imagine(arr, budget=5)
+    assert len(res.report["hallucinated"]) == 1
+    new = res.arrangement.cuboid(res.report["hallucinated"][0])
+    np.testing.assert_allclose(new.center[:2], [0.55, 0.35], atol=1e-9)
+    assert new.extra["hallucinated"] and new.observed is None
+    assert res.arrangement.stability.stable
+
+
+def test_refinement_lowers_energy_keeping_contacts_and_observed_points():
+    # a top box overhanging its base by 55 % of its length: refinement slides and grows it back
+    base = box("base", (0, 0, 0.5), (1, 1, 1))
+    top = box("top", (0.55, 0, 1.1), (1, 1, 0.2))
+    top = top.with_(observed=ObservedBox(np.array([0.8, 0, 1.1]), np.array([0.4, 1, 0.2])))
+    arr = Arrangement((base, top), (ground(),), (Contact("base", "ground"), Contact("base", "top")))
+    before = check_stability(arr).energy
+    res = refine(arr, max_steps=20)
+    assert res.energy_after < before / 10
+    out = res.arrangement.cuboid("top")
+    assert out.center[2] - out.size[2] / 2 == pytest.approx(1.0, abs=1e-6)  # still resting on base
+    lo = out.center - out.size / 2
+    hi = out.center + out.size / 2
+    assert lo[0] <= 0.6 + 1e-6 and hi[0] >= 1.0 - 1e-6  # still covers its observed part
