@@ -95,12 +95,16 @@ def axial_sigma(z: np.ndarray, theta: np.ndarray) -> np.ndarray:
     -------
     sigma : (...) float, metres
     """
-    z = np.asarray(z, float)
-    th = np.minimum(np.abs(np.asarray(theta, float)), np.deg2rad(80.0))
-    base = 0.0012 + 0.0019 * (z - 0.4) ** 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        extra = 0.0001 / np.sqrt(z) * th**2 / (np.pi / 2 - th) ** 2
-    return base + np.where(th > np.pi / 3, extra, 0.0)
+    z = np.asarray(z)
+    z = z if z.dtype == np.float32 else z.astype(float)
+    th = np.minimum(np.abs(np.asarray(theta, dtype=z.dtype)), np.deg2rad(80.0).astype(z.dtype))
+    sigma = 0.0012 + 0.0019 * (z - 0.4) ** 2
+    steep = th > np.pi / 3
+    if np.any(steep):
+        ts, zs = th[steep], np.broadcast_to(z, th.shape)[steep]
+        sigma = np.array(np.broadcast_to(sigma, th.shape))
+        sigma[steep] += 0.0001 / np.sqrt(zs) * ts**2 / (np.pi / 2 - ts) ** 2
+    return sigma
 
 
 def lateral_sigma_px(theta: np.ndarray) -> np.ndarray:
@@ -141,23 +145,38 @@ def _shift(a: np.ndarray, dv: int, du: int, fill: float) -> np.ndarray:
     return out
 
 
-def _one_sided_gradient(z: np.ndarray, axis: int, edge_jump: float) -> np.ndarray:
-    """Derivative of ``z`` along ``axis`` (per pixel): the forward or backward difference,
-    whichever is smaller in magnitude; NaN where both cross a jump > ``edge_jump * z`` or
-    reach an invalid pixel."""
-    inf = np.float32(np.inf)
-    zz = np.where(z > 0, z, np.nan).astype(np.float32)
+def _one_sided_gradient(zz: np.ndarray, axis: int, edge_jump: float) -> np.ndarray:
+    """Derivative of ``zz`` (float32, NaN = no reading) along ``axis``, per pixel: the
+    forward or backward difference, whichever is smaller in magnitude; NaN where both
+    jump by more than ``edge_jump * z`` or reach an invalid pixel."""
     diff = np.diff(zz, axis=axis)
-    pad = [(0, 0), (0, 0)]
-    pad[axis] = (0, 1)
-    fwd = np.pad(diff, pad, constant_values=np.nan)
-    pad[axis] = (1, 0)
-    bwd = np.pad(diff, pad, constant_values=np.nan)
-    af = np.where(np.isnan(fwd), inf, np.abs(fwd))
-    ab = np.where(np.isnan(bwd), inf, np.abs(bwd))
-    g = np.where(af <= ab, fwd, bwd)
-    g[np.minimum(af, ab) > edge_jump * zz] = np.nan
+    fwd = np.full_like(zz, np.nan)
+    bwd = np.full_like(zz, np.nan)
+    if axis == 1:
+        fwd[:, :-1] = diff
+        bwd[:, 1:] = diff
+    else:
+        fwd[:-1] = diff
+        bwd[1:] = diff
+    af = np.abs(fwd)
+    ab = np.abs(bwd)
+    g = np.where((af <= ab) | np.isnan(ab), fwd, bwd)
+    with np.errstate(invalid="ignore"):
+        g[np.fmin(af, ab) > edge_jump * zz] = np.nan
     return g
+
+
+def _gradients(depth: np.ndarray, intr: Intrinsics, edge_jump: float):
+    """float32 ``z``, ``fx z_u``, ``fy z_v`` and the ray components ``r_x (1, W)``,
+    ``r_y (H, 1)``."""
+    z = np.asarray(depth, dtype=np.float32)
+    H, W = z.shape
+    zz = np.where(z > 0, z, np.float32(np.nan))
+    rx = ((np.arange(W, dtype=np.float32) - np.float32(intr.cx)) / np.float32(intr.fx))[None, :]
+    ry = ((np.arange(H, dtype=np.float32) - np.float32(intr.cy)) / np.float32(intr.fy))[:, None]
+    gu = _one_sided_gradient(zz, 1, edge_jump) * np.float32(intr.fx)
+    gv = _one_sided_gradient(zz, 0, edge_jump) * np.float32(intr.fy)
+    return z, gu, gv, rx, ry
 
 
 def incidence_angle(depth: np.ndarray, intr: Intrinsics, edge_jump: float = 0.03
@@ -176,21 +195,29 @@ def incidence_angle(depth: np.ndarray, intr: Intrinsics, edge_jump: float = 0.03
     normals : (H, W, 3) float32, unit, camera frame, facing the camera (NaN: unknown)
     theta : (H, W) float32, radians between normal and viewing ray (NaN: unknown)
     """
-    z = np.asarray(depth, dtype=np.float32)
-    H, W = z.shape
-    rx = ((np.arange(W, dtype=np.float32) - np.float32(intr.cx)) / np.float32(intr.fx))[None, :]
-    ry = ((np.arange(H, dtype=np.float32) - np.float32(intr.cy)) / np.float32(intr.fy))[:, None]
-    gu = _one_sided_gradient(z, 1, edge_jump) * np.float32(intr.fx)
-    gv = _one_sided_gradient(z, 0, edge_jump) * np.float32(intr.fy)
+    z, gu, gv, rx, ry = _gradients(depth, intr, edge_jump)
     mz = z + gu * rx + gv * ry
     norm_m = np.sqrt(gu * gu + gv * gv + mz * mz)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        normals = np.stack([gu, gv, -mz], axis=-1) / norm_m[..., None]  # -m: toward camera
+    return normals, _theta(z, norm_m, rx, ry)
+
+
+def _theta(z: np.ndarray, norm_m: np.ndarray, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
     norm_r = np.sqrt(rx * rx + ry * ry + 1)
     with np.errstate(invalid="ignore", divide="ignore"):
         cos = z / (norm_m * norm_r)
-        normals = np.stack([gu, gv, -mz], axis=-1) / norm_m[..., None]  # -m: toward camera
     theta = np.arccos(np.clip(cos, 0.0, 1.0))
     theta[~np.isfinite(cos) | (z <= 0)] = np.nan
-    return normals, theta
+    return theta
+
+
+def incidence_theta(depth: np.ndarray, intr: Intrinsics, edge_jump: float = 0.03
+                    ) -> np.ndarray:
+    """Just the angles of :func:`incidence_angle` ((H, W) float32 radians, NaN unknown)."""
+    z, gu, gv, rx, ry = _gradients(depth, intr, edge_jump)
+    mz = z + gu * rx + gv * ry
+    return _theta(z, np.sqrt(gu * gu + gv * gv + mz * mz), rx, ry)
 
 
 def projector_shadow(depth: np.ndarray, intr: Intrinsics, baseline: float = 0.075,
@@ -246,7 +273,7 @@ def apply_noise(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator,
     H, W = clean.shape
     g_lat, g_fly, g_fly_w, g_ax, g_drop = rng.spawn(5)
     if m.lateral or m.axial or m.dropout:
-        theta0 = np.nan_to_num(incidence_angle(clean, intr, m.edge_jump)[1], nan=0.0)
+        theta0 = np.nan_to_num(incidence_theta(clean, intr, m.edge_jump), nan=0.0)
     z = clean.copy()
 
     if m.lateral:
@@ -254,7 +281,7 @@ def apply_noise(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator,
         off = np.rint(g_lat.standard_normal((2, H, W), dtype=np.float32) * s).astype(np.int32)
         rows = np.clip(np.arange(H, dtype=np.int32)[:, None] + off[0], 0, H - 1)
         cols = np.clip(np.arange(W, dtype=np.int32)[None, :] + off[1], 0, W - 1)
-        z = clean[rows, cols]
+        z = np.take(clean.ravel(), rows * W + cols)
 
     if m.flying_pixels:
         best = np.zeros_like(z)
@@ -262,10 +289,11 @@ def apply_noise(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator,
             nb = _shift(z, dv, du, 0.0)
             diff = np.where(nb > 0, nb - z, 0.0)
             best = np.where(np.abs(diff) > np.abs(best), diff, best)
-        edge = (z > 0) & (np.abs(best) > m.edge_jump * z)
-        fly = edge & (g_fly.random((H, W), dtype=np.float32) < m.flying_prob)
-        w = g_fly_w.random((H, W), dtype=np.float32)
-        z = np.where(fly, z + w * best, z)
+        ev, eu = np.nonzero((z > 0) & (np.abs(best) > m.edge_jump * z))  # edge pixels
+        fly = g_fly.random(len(ev), dtype=np.float32) < m.flying_prob
+        ev, eu = ev[fly], eu[fly]
+        w = g_fly_w.random(len(ev), dtype=np.float32)
+        z[ev, eu] += w * best[ev, eu]
 
     valid = z > 0
     if m.axial:
@@ -279,9 +307,10 @@ def apply_noise(depth: np.ndarray, intr: Intrinsics, rng: np.random.Generator,
     if m.dropout:
         ramp = (np.rad2deg(theta0) - m.grazing_start_deg) / max(
             m.grazing_deg - m.grazing_start_deg, 1e-9)
-        drop = g_drop.random((H, W), dtype=np.float32) < np.clip(ramp, 0.0, 1.0)
-        drop |= (z < m.min_depth) | (z > m.max_depth)
-        z[drop] = 0.0
+        gv, gu = np.nonzero(ramp > 0)  # grazing pixels only draw
+        lost = g_drop.random(len(gv), dtype=np.float32) < np.minimum(ramp[gv, gu], 1.0)
+        z[gv[lost], gu[lost]] = 0.0
+        z[(z < m.min_depth) | (z > m.max_depth)] = 0.0
 
     if m.shadows:
         z[projector_shadow(clean, intr, m.baseline)] = 0.0
