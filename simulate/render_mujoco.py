@@ -3,14 +3,16 @@
 The arrangement is drawn as boxes (no physics): one per cuboid with its own colour, and
 each support plane (ground, walls) as a large thin grey slab whose free face lies on the
 plane.  They are the geoms of a render-only MJCF with a pool of box geoms that is
-re-dressed per arrangement, so one GL context serves every scene of a process.  The OpenCV intrinsics are imposed exactly by
-writing the OpenGL frustum of MuJoCo's scene camera after ``mjv_updateScene`` (so any
-``fx, fy, cx, cy`` works, not only MuJoCo's symmetric ``fovy`` camera).
+re-dressed per arrangement, so one GL context (per thread and image size) serves every
+scene of a process.  The OpenCV intrinsics are imposed exactly by writing the OpenGL
+frustum of MuJoCo's scene camera after ``mjv_updateScene`` (so any ``fx, fy, cx, cy``
+works, not only MuJoCo's symmetric ``fovy`` camera).
 
-Depth is the camera-frame ``z`` (not the ray length), recovered by MuJoCo's reversed-Z
-depth buffer (float32) in float64: exact to about a micrometre at a few metres.
-Instance ids come from MuJoCo's segmentation pass: geom id -> cuboid index + 1, supports
-and background 0.
+Two passes per view: shaded colour, then MuJoCo's segmentation colours (geom id ->
+cuboid index + 1, supports and background 0) read together with the depth buffer.
+Depth is the camera-frame ``z`` (not the ray length), recovered from the reversed-Z
+float32 depth buffer in float64: equal to analytic ray casting within 2 micrometres
+(median) and 0.1 mm (worst pixel) at 1-8 m.
 
 Headless: ``MUJOCO_GL=egl`` (the default set here when unset), ``osmesa`` when no EGL
 library is found (or when the caller sets it).
