@@ -31,8 +31,8 @@ Measured on this machine (``tests/simulate/test_engines.py``, 20 cm cubes unless
 ============================  ==================  ==================
 case                          MuJoCo              PyBullet
 ============================  ==================  ==================
-10-cube column, 10 cm         0.68 mm, 0.00 deg   0.36 mm, 0.03 deg
-cube overhanging 49 %         0.13 mm, 0.04 deg   0.04 mm, 0.01 deg
+10-cube column, 10 cm         0.17 mm, 0.00 deg   0.24 mm, 0.02 deg
+cube overhanging 49 %         0.03 mm, 0.01 deg   0.04 mm, 0.01 deg
 cube overhanging 51 %         toppled, 90 deg     toppled, 90 deg
 plank 21 / 19 deg (L 1 m)     stands / slides     stands / slides
 plank stands from             20.5 deg            20.0 deg
@@ -44,8 +44,9 @@ fused 0.8 m cantilever        < 0.01 mm sag       < 0.01 mm sag
 so the thresholds (2 % of the body's size, 2 degrees, 0.5 % drift) sit well clear of
 both sides.  The engines' ladder limit lies 0.4-0.9 degrees above the rigid-body one
 (19.6 degrees for a 2 cm x 1 m plank): soft contacts.  Wall time (10 cm 10-cube column,
-1 s simulated, load + simulate + judge): MuJoCo 0.12-0.16 s, PyBullet 0.4-1.1 s (the
-range is the shared 2-core machine's load).
+1 s simulated, load + simulate + judge): MuJoCo 0.1 s, PyBullet 0.6-1.1 s (the
+range is the shared 2-core machine's load).  At 10 cm, 1 ms (MuJoCo) and 1/960 s
+(PyBullet) steps; see :mod:`simulate.mjcf` and :mod:`simulate.pybullet_engine`.
 """
 
 from __future__ import annotations
