@@ -29,13 +29,20 @@ class EdgeMap:
 
 
 def edge_map(image: np.ndarray, valid: np.ndarray | None = None) -> EdgeMap:
-    """Canny (thresholds from the median intensity) and its distance transform."""
+    """Canny (thresholds from the image's own gradients) and its distance transform."""
     import cv2
 
-    gray = cv2.cvtColor(image, cv2.COLOR_RGB2GRAY) if image.ndim == 3 else image
-    gray = cv2.GaussianBlur(gray, (5, 5), 1.2)
-    med = float(np.median(gray))
-    e = cv2.Canny(gray, int(max(10, 0.66 * med)), int(min(255, max(30, 1.33 * med)))) > 0
+    chans = [image[:, :, k] for k in range(3)] if image.ndim == 3 else [image]
+    e = np.zeros(image.shape[:2], bool)
+    for ch in chans:  # per colour channel: a red box on a grey floor has no grey-level edge
+        g = cv2.GaussianBlur(np.ascontiguousarray(ch), (5, 5), 1.2)
+        # thresholds from the gradients actually present (flat renders and photographs
+        # alike): high = the 80th percentile of the non-flat pixels
+        mag = np.abs(cv2.Sobel(g, cv2.CV_32F, 1, 0)) + np.abs(cv2.Sobel(g, cv2.CV_32F, 0, 1))
+        moving = mag[mag > 8]
+        high = float(min(np.percentile(moving, 80), 0.5 * moving.max())) if moving.size else 100.0
+        high = max(high, 40.0)
+        e |= cv2.Canny(g, 0.4 * high, high) > 0
     if valid is not None:
         e &= valid
     if not e.any():

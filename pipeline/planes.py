@@ -141,9 +141,12 @@ def ransac_planes(points: np.ndarray, threshold: float, rng: np.random.Generator
             break
         inlier = np.abs(remaining @ nrm + off) < threshold
         n2, o2 = fit_plane_lsq(remaining[inlier])
-        inl2 = np.abs(remaining @ n2 + o2) < threshold
-        if inl2.sum() >= inlier.sum():  # keep the least-squares refinement if it holds more
-            nrm, off, inlier = n2, o2, inl2
+        for tighter in (0.5, 0.25):  # refit on ever closer points: edges of things on it drop out
+            close = np.abs(remaining @ n2 + o2) < tighter * threshold
+            if close.sum() >= 3:
+                n2, o2 = fit_plane_lsq(remaining[close])
+        nrm, off = n2, o2
+        inlier = np.abs(remaining @ nrm + off) < threshold
         planes.append(Plane(nrm, off, int(inlier.sum())))
         remaining = remaining[~inlier]
     return planes

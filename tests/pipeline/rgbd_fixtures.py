@@ -65,7 +65,8 @@ def raycast(boxes: list[tuple[np.ndarray, np.ndarray, np.ndarray]], eye, target,
         # face shading: which slab was entered last
         face = np.argmax(np.minimum(t1, t2), axis=1)
         shade[hb] = 0.6 + 0.13 * face[hb]
-    depth = np.where(np.isfinite(t_best), t_best, 0.0)  # t is the camera z (d_cam z = 1)
+    # t is the camera z (d_cam z = 1); a sensor reads up to 10 m
+    depth = np.where(np.isfinite(t_best) & (t_best < 10.0), t_best, 0.0)
     col = np.full((P, 3), 0.0)
     base = np.where(inst[:, None] > 0, BOX_COLOURS[(inst - 1) % len(BOX_COLOURS)], 160)
     col = np.clip(base * shade[:, None] * 1.3, 0, 255).astype(np.uint8)

@@ -1,0 +1,94 @@
+"""Ground, walls and the world frame from ray-cast frames with exact truth."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+from rgbd_fixtures import raycast  # noqa: E402
+
+from pipeline.camera import backproject, invert, transform  # noqa: E402
+from pipeline.errors import InputError  # noqa: E402
+from pipeline.model import rotation_about_z  # noqa: E402
+from pipeline.planes import find_frame, fit_plane_lsq, ransac_plane  # noqa: E402
+
+BOXES = [(np.array([0.0, 0.0, 0.2]), rotation_about_z(0.3), np.array([0.5, 0.3, 0.4])),
+         (np.array([0.8, 0.5, 0.15]), rotation_about_z(-0.5), np.array([0.3, 0.3, 0.3]))]
+
+
+def test_ransac_plane_recovers_a_noisy_plane_among_outliers():
+    rng = np.random.default_rng(0)
+    n_true = np.array([0.2, -0.3, 0.93])
+    n_true /= np.linalg.norm(n_true)
+    u = np.cross(n_true, [1.0, 0, 0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n_true, u)
+    ab = rng.uniform(-1, 1, (3000, 2))
+    pts = ab[:, :1] * u + ab[:, 1:] * v + 0.5 * n_true + rng.normal(0, 0.002, (3000, 1)) * n_true
+    pts = np.concatenate([pts, rng.uniform(-1, 1, (2000, 3))])
+    n, off, cnt = ransac_plane(pts, 0.01, rng)
+    n2, off2 = fit_plane_lsq(pts[np.abs(pts @ n + off) < 0.01])
+    assert abs(abs(n2 @ n_true) - 1) < 1e-4
+    assert abs(abs(off2) - 0.5) < 2e-3
+    assert 2900 < cnt < 3300
+
+
+@pytest.mark.parametrize("eye", [(1.6, -1.8, 1.5), (-1.2, -2.0, 0.9), (2.2, 0.4, 2.0)])
+def test_frame_puts_ground_at_z0_and_keeps_camera_height(eye):
+    fr = raycast(BOXES, eye=eye, target=(0.3, 0.2, 0.15))
+    pts, pix = backproject(fr.depth, fr.intr)
+    f = find_frame(pts, np.random.default_rng(1), camera_frame=True)
+    # the chosen world differs from the truth only by a rotation about z and a shift in x, y
+    M = f.T_world_input @ invert(fr.T_world_cam)
+    assert abs(M[2, 2] - 1) < 1e-4
+    assert abs(M[2, 3]) < 2e-3
+    # camera height above the ground is the true one
+    assert f.T_world_input[2, 3] == pytest.approx(eye[2], abs=3e-3)
+    # ground labels are the true ground pixels (those far from the boxes' feet)
+    w_true = transform(fr.T_world_cam, pts)
+    on_ground = fr.instance[pix[:, 0], pix[:, 1]] == 0
+    assert np.all(f.labels[~on_ground & (w_true[:, 2] > 0.05)] != 0)
+    assert (f.labels[on_ground] == 0).mean() > 0.99
+    assert f.walls == ()
+
+
+def test_wall_is_found_and_faces_the_camera():
+    fr = raycast(BOXES, eye=(1.6, -1.8, 1.5), target=(0.3, 0.2, 0.15), wall_x=-0.8)
+    pts, _ = backproject(fr.depth, fr.intr)
+    f = find_frame(pts, np.random.default_rng(2), camera_frame=True)
+    assert len(f.walls) == 1
+    wall = f.walls[0]
+    # the wall's normal is horizontal and points at the camera
+    assert abs(wall.normal[2]) < 1e-3
+    cam = f.T_world_input[:3, 3]
+    assert wall.signed_distance(cam[None])[0] == pytest.approx(1.6 + 0.8, abs=5e-3)
+
+
+def test_given_pose_is_kept():
+    fr = raycast(BOXES, eye=(1.6, -1.8, 1.5), target=(0.3, 0.2, 0.15))
+    pts, _ = backproject(fr.depth, fr.intr)
+    f = find_frame(pts, np.random.default_rng(3), T_world_input=fr.T_world_cam, camera_frame=True)
+    assert np.array_equal(f.T_world_input, fr.T_world_cam)
+    assert abs(f.ground.point[2]) < 2e-3 and f.ground.normal[2] > 0.9999
+
+
+def test_no_ground_plane_raises_with_up_hint():
+    rng = np.random.default_rng(4)
+    blob = rng.normal(size=(5000, 3))
+    blob /= np.linalg.norm(blob, axis=1, keepdims=True)  # a sphere: no plane at all
+    with pytest.raises(InputError, match="--up"):
+        find_frame(blob, rng, camera_frame=False)
+
+
+def test_up_flag_selects_ground_in_an_unusual_frame():
+    fr = raycast(BOXES, eye=(1.6, -1.8, 1.5), target=(0.3, 0.2, 0.15))
+    pts, _ = backproject(fr.depth, fr.intr)
+    # express the cloud in the world frame rotated so that "up" is +x
+    R = np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]])
+    cloud = transform(fr.T_world_cam, pts) @ R.T
+    f = find_frame(cloud, np.random.default_rng(5), up=np.array([1.0, 0, 0]))
+    assert abs(abs(f.T_world_input[:3, :3].T[:, 2] @ np.array([1.0, 0, 0])) - 1) < 1e-4

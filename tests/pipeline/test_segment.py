@@ -1,0 +1,79 @@
+"""Clustering, flying pixels, instance labels and scribble GrabCut."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.segment import (
+    cluster,
+    depth_augmented,
+    flying_pixels,
+    grabcut_scribbles,
+    point_spacing,
+    segment_objects,
+)
+
+
+def blobs(rng, centers, n=800, r=0.05):
+    return np.concatenate([c + rng.uniform(-r, r, (n, 3)) for c in centers])
+
+
+def test_cluster_separates_blobs_and_is_order_invariant():
+    rng = np.random.default_rng(0)
+    pts = blobs(rng, [np.zeros(3), np.array([0.5, 0, 0]), np.array([0, 0.6, 0.2])])
+    lab = cluster(pts, 0.01)
+    truth = np.repeat(np.arange(3), 800)
+    assert len(np.unique(lab[lab >= 0])) == 3
+    # the partition equals the truth (up to naming)
+    for k in range(3):
+        assert len(np.unique(lab[truth == k])) == 1
+    perm = rng.permutation(len(pts))
+    lab2 = cluster(pts[perm], 0.01)
+    # same sizes-ordered names whatever the point order
+    assert np.array_equal(lab2, lab[perm])
+
+
+def test_point_spacing_of_a_grid():
+    g = np.stack(np.meshgrid(np.arange(50), np.arange(50), [0.0]), -1).reshape(-1, 3) * 0.01
+    assert abs(point_spacing(g) - 0.01) < 1e-9
+
+
+def test_flying_pixels_are_the_mixed_pixels_of_a_step():
+    d = np.full((20, 20), 2.0)
+    d[:, 10:] = 4.0
+    d[:, 10] = 3.0  # a mixed pixel between the two surfaces
+    f = flying_pixels(d)
+    assert f[:, 10].all() and f.sum() == 20
+
+
+def test_segment_objects_uses_instance_ids_and_drops_strays():
+    rng = np.random.default_rng(1)
+    pts = blobs(rng, [np.zeros(3), np.array([1.0, 0, 0])])
+    inst = np.repeat([3, 7], 800)
+    inst[0] = 7  # a mislabelled stray point far from object 7
+    labels, names = segment_objects(pts, np.ones(len(pts), bool), 0.01, instance=inst)
+    assert names == ["inst3", "inst7"]
+    assert labels[0] == -1  # the stray is dropped
+    assert (labels[1:800] == 0).all() and (labels[800:] == 1).all()
+
+
+def test_grabcut_splits_touching_objects_from_scribbles():
+    H, W = 80, 120
+    img = np.full((H, W, 3), 40, np.uint8)
+    depth = np.full((H, W), 3.0)
+    img[20:60, 20:60] = (200, 60, 50)
+    img[20:60, 60:100] = (60, 190, 70)
+    depth[20:60, 20:100] = 2.0  # the two squares touch and lie at the same depth
+    rng = np.random.default_rng(2)
+    img = np.clip(img + rng.normal(0, 8, img.shape), 0, 255).astype(np.uint8)
+    scr = np.zeros((H, W), np.int64)
+    scr[35:45, 35:40] = 1
+    scr[35:45, 75:80] = 2
+    allowed = depth < 2.5
+    lab = grabcut_scribbles(img, depth, scr, allowed)
+    for k, cols in ((1, slice(20, 60)), (2, slice(60, 100))):
+        truth = np.zeros((H, W), bool)
+        truth[20:60, cols] = True
+        got = lab == k
+        assert (got & truth).sum() / (got | truth).sum() > 0.9
+    assert depth_augmented(img, depth).dtype == np.uint8
