@@ -69,10 +69,10 @@ def _sat(occ: np.ndarray) -> np.ndarray:
     return S
 
 
-def _boxsum(S: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> int:
-    """Sum over the inclusive index box [lo, hi]."""
-    a0, b0, c0 = lo
-    a1, b1, c1 = hi + 1
+def _boxsum(S: np.ndarray, lo, hi) -> int:
+    """Sum over the inclusive index box [lo, hi] (sequences of 3 ints)."""
+    a0, b0, c0 = int(lo[0]), int(lo[1]), int(lo[2])
+    a1, b1, c1 = int(hi[0]) + 1, int(hi[1]) + 1, int(hi[2]) + 1
     return int(S[a1, b1, c1] - S[a0, b1, c1] - S[a1, b0, c1] - S[a1, b1, c0]
                + S[a0, b0, c1] + S[a0, b1, c0] + S[a1, b0, c0] - S[a0, b0, c0])
 
@@ -84,37 +84,44 @@ def grow_slab(S: np.ndarray, shape: tuple, seed: np.ndarray,
     A layer is added while it is at least ``min_fill`` occupied and the whole box stays
     above ``min_fill``.  Returns (lo, hi, occupied count).
     """
-    lo, hi = seed.copy(), seed.copy()
+    lo = [int(v) for v in seed]
+    hi = list(lo)
     count = _boxsum(S, lo, hi)
-    dims = np.array(shape)
+    dims = [int(d) for d in shape]
     while True:
         best, best_fill, best_count = None, -1.0, 0
         for ax in range(3):
+            o1, o2 = [k for k in range(3) if k != ax]
+            area = (hi[o1] - lo[o1] + 1) * (hi[o2] - lo[o2] + 1)
             for side in (-1, 1):
-                nlo, nhi = lo.copy(), hi.copy()
                 if side < 0:
                     if lo[ax] == 0:
                         continue
-                    nlo[ax] -= 1
-                    llo, lhi = nlo.copy(), nhi.copy()
-                    lhi[ax] = nlo[ax]
+                    at = lo[ax] - 1
                 else:
                     if hi[ax] == dims[ax] - 1:
                         continue
-                    nhi[ax] += 1
-                    llo, lhi = nlo.copy(), nhi.copy()
-                    llo[ax] = nhi[ax]
+                    at = hi[ax] + 1
+                llo, lhi = list(lo), list(hi)
+                llo[ax] = lhi[ax] = at
                 lc = _boxsum(S, llo, lhi)
-                lfill = lc / float(np.prod(lhi - llo + 1))
+                lfill = lc / area
                 if lfill > best_fill:
-                    best, best_fill, best_count = (nlo, nhi), lfill, lc
+                    best, best_fill, best_count = (ax, side, at), lfill, lc
         if best is None or best_fill < min_fill:
-            return lo, hi, count
-        nlo, nhi = best
+            break
+        ax, side, at = best
+        nlo, nhi = list(lo), list(hi)
+        if side < 0:
+            nlo[ax] = at
+        else:
+            nhi[ax] = at
+        vol = (nhi[0] - nlo[0] + 1) * (nhi[1] - nlo[1] + 1) * (nhi[2] - nlo[2] + 1)
         total = count + best_count
-        if total / float(np.prod(nhi - nlo + 1)) <= min_fill:
-            return lo, hi, count
+        if total / vol <= min_fill:
+            break
         lo, hi, count = nlo, nhi, total
+    return np.array(lo), np.array(hi), count
 
 
 def slabs(occ: np.ndarray, min_voxels: int, min_fill: float = SLAB_MIN_FILL,
