@@ -154,9 +154,13 @@ def arrangement_to_mjcf(arr: Arrangement, *, mu: float = DEFAULT_MU, welds: str 
         "  </default>",
         "  <worldbody>",
     ]
+    taken = set(arr.ids)
     for s in arr.supports:
+        name = "support:" + s.id
+        # geom names must be unique: a cuboid that happens to be called "support:..." wins
+        name_attr = f"name={quoteattr(name)} " if name not in taken else ""
         lines.append(
-            f'    <geom name={quoteattr("support:" + s.id)} type="plane" size="0 0 1" '
+            f'    <geom {name_attr}type="plane" size="0 0 1" '
             f'{_pose_attrs(s.point, _frame_from_normal(s.normal))} rgba="0.5 0.5 0.5 1"/>')
     sizes, centers, rots, dens = arr.sizes, arr.centers, arr.rotations, arr.densities
     for b in bodies:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from pipeline.model import Arrangement, Contact, Support, box, ground, rotation_about_axis
 from simulate.export import rigid_bodies
@@ -134,3 +136,32 @@ def test_quaternion_convention_wxyz() -> None:
     mujoco.mju_quat2Mat(R, q)
     np.testing.assert_allclose(R.reshape(3, 3), rotation_about_axis((0, 0, 1), np.pi / 2),
                                atol=1e-15)
+
+
+def test_cuboid_named_like_a_support_geom_still_compiles() -> None:
+    arr = Arrangement((box("support:ground", (0, 0, 0.05), (0.1, 0.1, 0.1)),), (ground(),))
+    model, _ = _compile(arr)
+    gid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "support:ground")
+    assert model.geom_type[gid] == mujoco.mjtGeom.mjGEOM_BOX
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.floats(-np.pi, np.pi), st.floats(-2.0, 2.0))
+def test_rigid_bodies_partition_and_conserve_mass(seed: int, yaw: float, shift: float) -> None:
+    """Property: bodies partition the cuboids, conserve mass and move with the scene."""
+    from synth_scenes.random_arrangements import with_yaw
+
+    arr = random_arrangement(np.random.default_rng(seed))
+    bodies, _ = rigid_bodies(arr)
+    members = np.sort(np.concatenate([b.members for b in bodies]))
+    assert np.array_equal(members, np.arange(len(arr.cuboids)))
+    assert sum(b.mass for b in bodies) == pytest.approx(float(arr.masses.sum()), rel=1e-12)
+    moved = with_yaw(arr, yaw)
+    moved = moved.with_(cuboids=tuple(c.with_(center=c.center + [shift, 0, 0])
+                                      for c in moved.cuboids))
+    Rz = rotation_about_axis((0, 0, 1), yaw)
+    for b, m in zip(bodies, rigid_bodies(moved)[0], strict=True):
+        assert np.array_equal(b.members, m.members) and b.static == m.static
+        np.testing.assert_allclose(m.com, Rz @ b.com + [shift, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(m.inertia, Rz @ b.inertia @ Rz.T,
+                                   atol=1e-12 * max(1.0, float(np.abs(b.inertia).max())))
