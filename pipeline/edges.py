@@ -18,6 +18,11 @@ import numpy as np
 from .camera import Intrinsics, invert, project, transform
 from .model import CORNER_SIGNS
 
+#: A snap moves a box by at most this fraction of its largest edge ...
+MAX_SHIFT_REL = 0.25
+#: ... and turns it by at most this many degrees (edges only correct small errors).
+MAX_TURN_DEG = 10.0
+
 
 @dataclass(frozen=True)
 class EdgeMap:
@@ -154,7 +159,9 @@ def refine_box(center: np.ndarray, R: np.ndarray, size: np.ndarray, points: np.n
     c_new, R_new = pose(x)
     fit_before = float(np.mean(point_box_distance(points, center, R, size))) if len(points) else 0.0
     fit_after = float(np.mean(point_box_distance(points, c_new, R_new, size))) if len(points) else 0.0
-    accepted = bool(after < before and fit_after <= fit_before * 1.0 + 1e-12)
+    small = (np.linalg.norm(c_new - center) <= MAX_SHIFT_REL * float(np.max(size))
+             and np.degrees(np.arccos(np.clip((np.trace(R_new @ R.T) - 1) / 2, -1, 1))) <= MAX_TURN_DEG)
+    accepted = bool(after < before and small and fit_after <= fit_before + 1e-12)
     info = {"accepted": accepted, "edge_px_before": before, "edge_px_after": after,
             "fit_before": fit_before, "fit_after": fit_after}
     return (c_new, R_new, info) if accepted else (center, R, info)

@@ -191,20 +191,31 @@ def evidence_fill(surf: np.ndarray, hidden: np.ndarray) -> np.ndarray:
     return surf | (hidden & ev_x[:, None, :] & ev_y[None, :, :])
 
 
-def merge_slabs(boxes: list[tuple[np.ndarray, np.ndarray]], loose: np.ndarray,
-                min_fill: float = SLAB_MIN_FILL) -> list[tuple[np.ndarray, np.ndarray]]:
+def merge_slabs(boxes: list[tuple[np.ndarray, np.ndarray]], occ: np.ndarray,
+                loose: np.ndarray | None = None, min_fill: float = SLAB_MIN_FILL,
+                plate_cells: int = 3) -> list[tuple[np.ndarray, np.ndarray]]:
     """Merge slabs of one object whose joint bounding box is still more than ``min_fill``
-    occupied when every hidden voxel counts (a box seen only from the front and top
-    gives a front and a top slab: they merge; a table top and its legs do not)."""
+    occupied in ``occ`` (fragments a greedy cover left side by side become one).
+
+    Two *plates* (at most ``plate_cells`` thick) also merge when their joint box is full
+    in ``loose`` (every hidden voxel counted): a box seen only from the top and front
+    gives a top plate and a front plate, and is one box; a table top and its legs
+    (legs are not plates) stay apart.
+    """
     boxes = [(np.asarray(a), np.asarray(b)) for a, b in boxes]
-    S = _sat(loose)
+    S = _sat(occ)
+    SL = _sat(loose) if loose is not None else None
     while len(boxes) > 1:
         best = None
         for i in range(len(boxes)):
             for j in range(i + 1, len(boxes)):
                 lo = np.minimum(boxes[i][0], boxes[j][0])
                 hi = np.maximum(boxes[i][1], boxes[j][1])
-                fill = _boxsum(S, lo, hi) / float(np.prod(hi - lo + 1))
+                vol = float(np.prod(hi - lo + 1))
+                fill = _boxsum(S, lo, hi) / vol
+                plates = all(np.min(b - a + 1) <= plate_cells for a, b in (boxes[i], boxes[j]))
+                if SL is not None and plates:
+                    fill = max(fill, _boxsum(SL, lo, hi) / vol)
                 if fill > min_fill and (best is None or fill > best[0]):
                     best = (fill, i, j, lo, hi)
         if best is None:
@@ -250,7 +261,7 @@ def fit_upright(points: np.ndarray, cell: float, *,
     out = []
     min_vox = max(min_voxels, int(SPECK_FRACTION * surf.sum()))
     min_pts = max(min_points, int(SPECK_FRACTION * len(points)))
-    for lo, hi in merge_slabs([(lo, hi) for lo, hi, _ in slabs(occ, min_vox, seed_mask=surf)], loose):
+    for lo, hi in merge_slabs([(lo, hi) for lo, hi, _ in slabs(occ, min_vox, seed_mask=surf)], occ, loose):
         blo = np.maximum(pmin + lo * c, pmin)
         bhi = np.minimum(pmin + (hi + 1) * c, pmax)
         size = np.maximum(bhi - blo, 0.5 * c)
@@ -258,6 +269,11 @@ def fit_upright(points: np.ndarray, cell: float, *,
         npts = int(inside.sum())
         if npts < min_pts:
             continue
+        # a face with points in its boundary voxel layer was seen: move it onto them
+        qlo, qhi = local[inside].min(0), local[inside].max(0)
+        blo = np.where(qlo < blo + c, qlo, blo)
+        bhi = np.where(qhi > bhi - c, qhi, bhi)
+        size = np.maximum(bhi - blo, 0.5 * c)
         center = R @ ((blo + bhi) / 2)
         out.append(FittedBox(center, R.copy(), size, npts))
     return out

@@ -162,8 +162,10 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         em = edge_map(scan.image)
         out = []
         for k, b in boxes:
-            sel = labels == k
-            c, R, info = refine_box(b.center, b.rotation, b.size, world[sel], em, scan.intrinsics,
+            # the box's own points: those of its object within a cell of it
+            obj = world[labels == k]
+            own = obj[np.all(np.abs((obj - b.center) @ b.rotation) <= b.size / 2 + cell, axis=1)]
+            c, R, info = refine_box(b.center, b.rotation, b.size, own, em, scan.intrinsics,
                                     T_world_cam, upright=not b.slanted)
             edge_infos.append(info)
             refined += int(info.get("accepted", False))

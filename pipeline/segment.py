@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+#: An object named by an instance mask needs only this many points (clusters need more).
+MIN_INSTANCE_POINTS = 30
+
 #: Depth jump, relative to depth, that marks a pixel as a flying pixel at an edge.
 FLYING_REL_JUMP = 0.04
 
@@ -180,7 +183,7 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
         ids = np.unique(instance[object_mask & (instance > 0)])
         for i in ids:
             sel = object_mask & (instance == i)
-            if sel.sum() >= min_points:
+            if sel.sum() >= min(min_points, MIN_INSTANCE_POINTS):  # given masks are trusted
                 sel = _main_components(world, sel, cell)
                 labels[sel] = len(names)
                 names.append(f"inst{int(i)}")
