@@ -31,18 +31,18 @@ Exit 0 written, 1 no valid scene found within --max-attempts, 2 bad input."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("kind", metavar="KIND", help="scene family: " + ", ".join(KINDS))
-    parser.add_argument("--out", type=Path, required=True, help="scene directory (created)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--views", type=int, default=1, help="camera views (default 1)")
+    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="scene directory (created)")
+    parser.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
+    parser.add_argument("--views", type=int, default=1, metavar="K", help="camera views (default 1)")
     parser.add_argument("--noise", default="kinect", choices=("kinect", "none"),
                         help="depth noise model (default kinect)")
-    parser.add_argument("--n-boxes", type=int, default=None, help="stack: number of boxes")
-    parser.add_argument("--n-objects", type=int, default=None, help="room: number of objects")
+    parser.add_argument("--n-boxes", type=int, default=None, metavar="N", help="stack: number of boxes")
+    parser.add_argument("--n-objects", type=int, default=None, metavar="N", help="room: number of objects")
     parser.add_argument("--renderer", default="mujoco", choices=("mujoco", "pybullet"),
                         help="render backend of the virtual sensor (default mujoco)")
     parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet", "all"),
                         help="engines a scene must stand in to be kept (default mujoco)")
-    parser.add_argument("--max-attempts", type=int, default=None,
+    parser.add_argument("--max-attempts", type=int, default=None, metavar="N",
                         help="samples to try before giving up (default 25)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 
