@@ -193,31 +193,44 @@ def evidence_fill(surf: np.ndarray, hidden: np.ndarray) -> np.ndarray:
 
 def merge_slabs(boxes: list[tuple[np.ndarray, np.ndarray]], occ: np.ndarray,
                 loose: np.ndarray | None = None, min_fill: float = SLAB_MIN_FILL,
-                plate_cells: int = 3) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Merge slabs of one object whose joint bounding box is still more than ``min_fill``
-    occupied in ``occ`` (fragments a greedy cover left side by side become one).
+                max_free: float = 0.15) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Merge slabs of one object into their joint bounding box when that adds no space
+    the sensor saw as empty.
 
-    Two *plates* (at most ``plate_cells`` thick) also merge when their joint box is full
-    in ``loose`` (every hidden voxel counted): a box seen only from the top and front
-    gives a top plate and a front plate, and is one box; a table top and its legs
-    (legs are not plates) stay apart.
+    Two slabs merge when their joint box is more than ``min_fill`` occupied in ``occ``
+    (fragments a greedy cover left side by side), or, given ``loose`` (observed or
+    hidden), when at most ``max_free`` of the volume the merge adds was seen free: a box
+    seen from the top and one side gives a top and a side slab and is one box; a table
+    top and a leg stay apart, because the sensor saw the floor under the table.
     """
     boxes = [(np.asarray(a), np.asarray(b)) for a, b in boxes]
     S = _sat(occ)
-    SL = _sat(loose) if loose is not None else None
+    SF = _sat(~loose) if loose is not None else None
+
+    def vol(lo: np.ndarray, hi: np.ndarray) -> int:
+        return int(np.prod(np.maximum(hi - lo + 1, 0)))
+
     while len(boxes) > 1:
         best = None
         for i in range(len(boxes)):
             for j in range(i + 1, len(boxes)):
-                lo = np.minimum(boxes[i][0], boxes[j][0])
-                hi = np.maximum(boxes[i][1], boxes[j][1])
-                vol = float(np.prod(hi - lo + 1))
-                fill = _boxsum(S, lo, hi) / vol
-                plates = all(np.min(b - a + 1) <= plate_cells for a, b in (boxes[i], boxes[j]))
-                if SL is not None and plates:
-                    fill = max(fill, _boxsum(SL, lo, hi) / vol)
-                if fill > min_fill and (best is None or fill > best[0]):
-                    best = (fill, i, j, lo, hi)
+                (a0, a1), (b0, b1) = boxes[i], boxes[j]
+                lo, hi = np.minimum(a0, b0), np.maximum(a1, b1)
+                v = float(vol(lo, hi))
+                score = _boxsum(S, lo, hi) / v
+                ok = score > min_fill
+                if not ok and SF is not None:
+                    o0, o1 = np.maximum(a0, b0), np.minimum(a1, b1)
+                    overlap = vol(o0, o1)
+                    added = v - vol(a0, a1) - vol(b0, b1) + overlap
+                    free = (_boxsum(SF, lo, hi) - _boxsum(SF, a0, a1) - _boxsum(SF, b0, b1)
+                            + (_boxsum(SF, o0, o1) if overlap else 0))
+                    # little of what the merge adds was seen free, relative to what it
+                    # adds or (for boxes that overlap already) to the whole joint box
+                    ok = added <= 0 or free <= max_free * added or free <= 0.05 * v
+                    score = 1.0 - free / max(added, 1)
+                if ok and (best is None or score > best[0]):
+                    best = (score, i, j, lo, hi)
         if best is None:
             break
         _, i, j, lo, hi = best
