@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 #: name -> (module, one-line help, example)
@@ -56,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
         top.parse_args(argv[:1] or ["--help"])
         return 2
     name = argv[0]
+    # headless rendering: MuJoCo picks its GL backend when first imported
+    os.environ.setdefault("MUJOCO_GL", "egl")
     module_name, help_, example = COMMANDS[name]
     module = importlib.import_module(module_name)
     parser = argparse.ArgumentParser(

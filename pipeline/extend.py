@@ -31,6 +31,9 @@ from .model import Arrangement, Cuboid, box_corners, is_support_id
 
 #: An extension longer than this many times the scene's median box edge is not proposed.
 MAX_EXTENSION_REL = 12.0
+#: A sideways extension (face normal within 60 degrees of horizontal) is at most this
+#: many times the box's largest edge: hidden backs, not bridges between far objects.
+SIDEWAYS_EXTENSION_REL = 1.5
 #: A face looks at a support when its outward normal is within 60 degrees of facing it.
 FACING_COS = 0.5
 #: Reject an extension when more than this fraction of its samples were seen through.
@@ -107,6 +110,14 @@ def _face_gaps(Ca, Ra, Ha, corners_b) -> np.ndarray:
     return np.stack([neg, pos], axis=2)
 
 
+def _caps(R: np.ndarray, S: np.ndarray, axis: np.ndarray, max_ext: float) -> np.ndarray:
+    """(P,) longest extension allowed along ``axis`` of each box (sideways ones are short)."""
+    uz = np.abs(R[np.arange(len(axis)), 2, axis])
+    sideways = uz < 0.5
+    return np.where(sideways, np.minimum(max_ext, SIDEWAYS_EXTENSION_REL * S.max(axis=1)),
+                    max_ext)
+
+
 def pair_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
     """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs."""
     K = len(arr.cuboids)
@@ -127,10 +138,12 @@ def pair_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
     edges: list[Edge] = []
     exts = []  # (pair, which, axis, side, length)
     for which, g in ((0, gi), (1, gj)):
+        src_idx = i if which == 0 else j
         flat = g.reshape(len(i), 6)
         best = np.argmax(flat, axis=1)
         length = flat[np.arange(len(i)), best]
-        ok = apart & (length > -tol) & (length <= max_ext)
+        cap = _caps(R[src_idx], S[src_idx], best // 2, max_ext)
+        ok = apart & (length > -tol) & (length <= cap)
         for p in np.nonzero(ok)[0]:
             exts.append((p, which, int(best[p] // 2), int(best[p] % 2), max(float(length[p]), 0.0)))
     # verify that each extension really makes the pair touch (footprints overlap)
@@ -190,7 +203,9 @@ def support_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
             if dmin[k] < 0 or c[k] < FACING_COS:
                 continue
             length = float(dmin[k] / c[k])
-            if length > max_ext:
+            cap = _caps(arr.rotations[k:k + 1], arr.sizes[k:k + 1], np.array([best[k] // 2]),
+                        max_ext)[0]
+            if length > cap:
                 continue
             e = Extension(k, int(best[k] // 2), int(best[k] % 2), length)
             v = e.volume(arr.sizes)

@@ -5,8 +5,8 @@ Every candidate edge (a pair of cuboids, or a cuboid and a support, see
 no boxes interpenetrate and the arrangement is stable (:mod:`pipeline.stability`);
 among feasible choices we minimise, lexicographically, the number of ``fixed``
 contacts and then the added volume.  Edges between two parts of the same object are
-fused by construction (their ``fixed`` costs nothing: the segmentation says they are
-one rigid object) and only choose their extension.
+fused where they touch (their ``fixed`` costs nothing: the segmentation says they are
+one rigid object): they choose between staying apart and an extension that joins them.
 
 Branch and bound
 ----------------
@@ -105,8 +105,8 @@ class _Group:
         # same-object edges only fuse (or stay apart when they cannot reach each other)
         fixed_edges = []
         for e in edges:
-            if e.same_object:
-                opts = [o for o in e.options if o.type == "fixed"] or list(e.options)
+            if e.same_object:  # parts of one object: fused where they touch, or apart
+                opts = [o for o in e.options if o.type != "touch"] or list(e.options)
                 e = Edge(e.a, e.b, tuple(sorted(opts, key=lambda o: o.volume)), True, e.touching)
             fixed_edges.append(e)
         # decide the most expensive edges first; options cheapest first
@@ -180,34 +180,35 @@ class _Group:
 
     # -- search
     def root(self) -> tuple[int, ...]:
-        """Every edge at its most supportive option that does not interpenetrate alone."""
+        """The most supportive assignment without interpenetration, built edge by edge.
+
+        Pairs that already touch start fused; then support edges, then pair edges (each
+        group cheapest first) take their smallest ``fixed`` extension that does not drive
+        a box into another given the extensions already taken; an edge none of whose
+        fixed options fit stays apart.
+        """
         out = []
         for opts in self.options:
-            fixed = [n for n, o in enumerate(opts) if o.type == "fixed"]
-            fixed.sort(key=lambda n: opts[n].volume)
-            out.append(fixed[0] if fixed else 0)
-        assignment = tuple(out)
-        # an extension that interpenetrates in the root is replaced by the next option
-        for _ in range(len(out)):
-            ok, res = self.evaluate(assignment)
-            if res != "penetration":
-                break
-            geom, cs = self.geometry(assignment)
-            bad = {n for pair in cs.penetrations for n in pair[:2]}
-            changed = False
-            for k, (e, opts) in enumerate(zip(self.edges, self.options)):
-                names = _edge_name(self.full, e)
-                if opts[out[k]].extensions and (names[0] in bad or names[1] in bad):
-                    alts = [n for n, o in enumerate(opts)
-                            if n != out[k] and o.type == "fixed" and not o.extensions]
-                    alts += [n for n, o in enumerate(opts) if o.type == "none"]
-                    if alts:
-                        out[k] = alts[0]
-                        changed = True
-            assignment = tuple(out)
-            if not changed:
-                break
-        return assignment
+            plain = [n for n, o in enumerate(opts) if o.type == "fixed" and not o.extensions]
+            none = [n for n, o in enumerate(opts) if o.type == "none"]
+            out.append(plain[0] if plain else (none[0] if none else 0))
+        order = sorted(range(len(self.edges)),
+                       key=lambda k: (not isinstance(self.edges[k].b, str),
+                                      min(o.volume for o in self.options[k])))
+        for k in order:
+            opts = self.options[k]
+            if not any(o.extensions for o in opts):
+                continue
+            fixed = sorted((n for n, o in enumerate(opts) if o.type == "fixed" and o.extensions),
+                           key=lambda n: opts[n].volume)
+            for i in fixed:
+                trial = list(out)
+                trial[k] = i
+                _, cs = self.geometry(tuple(trial))
+                if not cs.penetrations:
+                    out = trial
+                    break
+        return tuple(out)
 
     def run(self, deadline: float) -> tuple[tuple[int, ...], bool, object]:
         root = self.root()
@@ -285,13 +286,51 @@ class _Group:
                 self.stats.pruned_unstable += 1
             return ok
 
+        # pass 1, all at once first (the common case: everything just rests)
+        relax = {}
         for level, (e, opts) in enumerate(zip(self.edges, self.options)):
             if _option_cost(e, opts[current[level]])[0] == 0:
                 continue
-            touch = [n for n, o in enumerate(opts) if o.type == "touch"]
-            for i in sorted(touch, key=lambda n: opts[n].volume):
-                if attempt(level, i):
-                    break
+            same = opts[current[level]].extensions
+            touch = sorted((n for n, o in enumerate(opts) if o.type == "touch"),
+                           key=lambda n: (opts[n].extensions != same, opts[n].volume))
+            if touch:
+                relax[level] = touch
+        bulk = list(current)
+        for level, touch in relax.items():
+            bulk[level] = touch[0]
+        self.stats.nodes += 1
+        if relax and self.evaluate(tuple(bulk))[0]:
+            current = bulk
+        else:
+            for level, touch in relax.items():
+                for i in touch:
+                    if attempt(level, i):
+                        break
+        # pass 2, in bulk first: extensions whose contact carries no load in the current
+        # equilibrium are dropped together (verified by one evaluation)
+        ok, res = self.evaluate(tuple(current))
+        if ok and getattr(res, "contact_load", None) is not None:
+            _, cs = self.geometry(tuple(current))
+            lookup = cs.lookup()
+            bulk = list(current)
+            for level, (e, opts) in enumerate(zip(self.edges, self.options)):
+                o = opts[current[level]]
+                if not o.extensions:
+                    continue
+                a, b = _edge_name(self.full, e)
+                m = lookup.get((a, b) if a <= b else (b, a))
+                if m is not None and res.contact_load[m] > 1e-9:
+                    continue
+                cheaper = [n for n, p in enumerate(opts)
+                           if _option_cost(e, p)[0] <= _option_cost(e, o)[0]
+                           and not p.extensions and p.type != "fixed"]
+                if cheaper:
+                    bulk[level] = cheaper[0]
+            if bulk != current:
+                self.stats.nodes += 1
+                if self.evaluate(tuple(bulk))[0]:
+                    current = bulk
         for level, (e, opts) in enumerate(zip(self.edges, self.options)):
             here = _option_cost(e, opts[current[level]])
             for i in range(len(opts)):  # cheapest first

@@ -84,6 +84,8 @@ log = logging.getLogger(__name__)
 
 #: groups with at most this many unknowns are solved by dense NNLS under ``auto``
 NNLS_MAX_COLUMNS = 400
+#: systems with at most this many matrix entries are sliced densely (small scenes)
+DENSE_MAX_ENTRIES = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -112,6 +114,8 @@ class StabilityResult:
     mu: float
     n_contacts: int = 0
     penetrations: tuple[tuple[str, str, float], ...] = ()
+    #: (M,) scale-free load carried by each contact of the ContactSet (0: not needed here)
+    contact_load: np.ndarray | None = None
 
     @property
     def unstable_ids(self) -> list[str]:
@@ -291,58 +295,59 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
 
 # ------------------------------------------------------------------------- solvers
 def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Independent groups: (row indices, column indices) of each connected block."""
+    """Independent groups: (row indices, column indices) of each connected block.
+
+    Two free bodies are connected when a column acts on both (a contact between them).
+    """
     from scipy.sparse.csgraph import connected_components
 
     F = len(system.free)
     if F == 0:
         return []
-    D = system.D
-    body_of_row = np.arange(D.shape[0]) // 6
-    coo = D.tocoo()
-    bc = sp.csr_matrix((np.ones(coo.nnz), (body_of_row[coo.row], coo.col)),
-                       shape=(F, D.shape[1]))
-    adj = (bc @ bc.T)
+    cr = system.col_row
+    both = (cr[:, 0] >= 0) & (cr[:, 1] >= 0)
+    adj = sp.coo_matrix((np.ones(int(both.sum())), (cr[both, 0], cr[both, 1])), shape=(F, F))
     ncomp, label = connected_components(adj, directed=False)
-    col_label = np.full(D.shape[1], -1)
-    col_label[coo.col] = label[body_of_row[coo.row]]
+    col_body = np.where(cr[:, 0] >= 0, cr[:, 0], cr[:, 1])
+    col_label = np.where(col_body >= 0, label[np.maximum(col_body, 0)], -1)
+    order = np.argsort(col_label, kind="stable")
+    bounds = np.searchsorted(col_label[order], np.arange(ncomp + 1))
     out = []
     for c in range(ncomp):
         bodies_c = np.nonzero(label == c)[0]
         rows = (6 * bodies_c[:, None] + np.arange(6)).ravel()
-        out.append((rows, np.nonzero(col_label == c)[0]))
+        out.append((rows, order[bounds[c]:bounds[c + 1]]))
     return out
 
 
-def _normal_only(D: sp.spmatrix, b: np.ndarray, col_vertex: np.ndarray,
+def _normal_only(D: np.ndarray, b: np.ndarray, col_vertex: np.ndarray,
                  tol: float = 1e-10) -> np.ndarray | None:
     """An exact solution using normal forces only (one column per vertex), or None.
 
     The mean of a vertex's pyramid columns is its normal direction, so a frictionless
     equilibrium is one with equal weights on a vertex's columns.  It has an eighth of
-    the unknowns: a cheap certificate of E = 0 before the full problem.
+    the unknowns: a cheap certificate of E = 0 before the full problem.  ``D`` is dense
+    with the columns of each vertex contiguous.
     """
     from scipy.optimize import nnls
 
     if len(col_vertex) == 0:
         return None if np.linalg.norm(b) > tol else np.zeros(0)
-    vert, inv = np.unique(col_vertex, return_inverse=True)
-    per = np.bincount(inv, minlength=len(vert)).astype(float)
-    agg = sp.csc_matrix((np.ones(len(inv)) / per[inv], (np.arange(len(inv)), inv)),
-                        shape=(len(inv), len(vert)))
-    Dn = (D @ agg).toarray()
-    x, res = nnls(Dn, b, maxiter=50 * max(len(vert), 10))
+    starts = np.r_[0, np.nonzero(np.diff(col_vertex))[0] + 1]
+    per = np.diff(np.r_[starts, len(col_vertex)]).astype(float)
+    Dn = np.add.reduceat(D, starts, axis=1) / per
+    x, res = nnls(Dn, b, maxiter=50 * max(len(starts), 10))
     if res > tol:
         return None
-    return (x / per)[inv]
+    return np.repeat(x / per, per.astype(int))
 
 
-def _solve_nnls(D: sp.spmatrix, b: np.ndarray) -> np.ndarray:
+def _solve_nnls(D: np.ndarray, b: np.ndarray) -> np.ndarray:
     from scipy.optimize import nnls
 
     if D.shape[1] == 0:
         return np.zeros(0)
-    x, _ = nnls(D.toarray(), b, maxiter=50 * max(D.shape[1], 10))
+    x, _ = nnls(np.asarray(D), b, maxiter=50 * max(D.shape[1], 10))
     return x
 
 
@@ -452,23 +457,32 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             return lam, "load-path"
     lam = np.zeros(D.shape[1])
     used = set()
+    dense = D.toarray() if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES else None
+    Dr = D.tocsr() if dense is None else None
     for rows, cols in _components(system):
         if column_mask is not None:
             cols = cols[column_mask[cols]]
-        sub = D[rows][:, cols]
+        if dense is not None:
+            sub_dense = dense[np.ix_(rows, cols)]
+            sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
+        else:
+            sub = Dr[rows][:, cols].tocsc()
+            sub_dense = sub.toarray() if len(cols) <= 4 * NNLS_MAX_COLUMNS else None
         rhs = system.b[rows]
         choice = backend
-        if choice == "auto":
-            x = _normal_only(sub, rhs, system.col_vertex[cols])
+        if choice == "auto" and sub_dense is not None:
+            x = _normal_only(sub_dense, rhs, system.col_vertex[cols])
             if x is not None:
                 used.add("normal")
                 lam[cols] = x
                 continue
             choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"
+        if choice == "auto":
+            choice = "qp"
         if choice == "nnls":
-            x = _solve_nnls(sub, rhs)
+            x = _solve_nnls(sub_dense if sub_dense is not None else sub.toarray(), rhs)
         else:
-            x = _solve_qp(sub, rhs)
+            x = _solve_qp(sub if sub is not None else sp.csc_matrix(sub_dense), rhs)
         used.add(choice)
         lam[cols] = x
     return lam, "+".join(sorted(used)) or "none"
@@ -558,8 +572,10 @@ def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> Stabilit
                                 bool(bodies.anchored[g]), int(g)))
     status = "interpenetration" if contacts.penetrations else "ok"
     stable = energy < threshold and not contacts.penetrations
+    load = np.bincount(system.col_contact, weights=lam, minlength=contacts.count) \
+        if len(lam) else np.zeros(contacts.count)
     return StabilityResult(stable, energy, threshold, status, tuple(out), used, mu,
-                           contacts.count, contacts.penetrations)
+                           contacts.count, contacts.penetrations, load)
 
 
 def contact_force_newtons(arr: Arrangement, mu: float = DEFAULT_MU,
