@@ -23,6 +23,10 @@ from .segment import flying_pixels, grabcut_scribbles, point_spacing, segment_ob
 SEGMENTATIONS = ("auto", "instance", "cluster")
 #: An object needs at least this fraction of the scan's points (smaller clusters are specks).
 MIN_OBJECT_FRACTION = 1e-3
+#: Within this many pixels of an instance-mask border, a pixel whose depth differs from
+#: the 5x5 median by more than ``MASK_DEPTH_REL`` of it is dropped (mixed/shifted depth).
+MASK_ERODE_PX = 2
+MASK_DEPTH_REL = 0.02
 #: Smallest voxel, metres (below the depth noise of any consumer sensor).
 MIN_CELL = 0.002
 
@@ -110,6 +114,18 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     min_cell = max(MIN_CELL, 1.5 * spacing)
     cell = max(cell_rel * diameter, min_cell)
     instance = scan.instance if segmentation != "cluster" else None
+    if instance is not None and camera and scan.instance_image is not None:
+        # depth at mask borders is mixed or shifted by the sensor: trust only mask interiors
+        import cv2
+        from scipy.ndimage import maximum_filter, minimum_filter
+
+        img = scan.instance_image
+        size = 2 * MASK_ERODE_PX + 1
+        border = maximum_filter(img, size=size) != minimum_filter(img, size=size)
+        # a border pixel stays when its depth agrees with its neighbourhood's median
+        med = cv2.medianBlur(scan.depth.astype(np.float32), 5).astype(float)
+        bad = border & (np.abs(scan.depth - med) > MASK_DEPTH_REL * np.maximum(med, 1e-6))
+        instance = np.where(bad[scan.pixels[:, 0], scan.pixels[:, 1]], 0, instance)
     if segmentation == "instance" and (instance is None or not np.any(instance > 0)):
         raise InputError(f"{scan.source}: --segmentation instance but the input has no instance ids")
     if instance is not None and scan.instance_objects:
