@@ -1,0 +1,127 @@
+"""The per-scene work shared by the paper's suites: synthesize, scan, run, score.
+
+Every function here runs inside one :class:`eval.runner.Task`, so it writes its scene
+directory to a temporary folder (Dask workers need no shared disk) and returns plain
+JSON-ready dicts.  Nothing here reads a clock into a record: records of the same task and
+seed are byte-identical; timings are the runner's (``timing.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Search budget per scene, seconds (the pipeline's default).
+BUDGET = 10.0
+#: First scene seed of the suites (tests use smaller seeds, so the suites never reuse them).
+SCENE_SEED0 = 1000
+
+
+def scene_seed(suite_seed: int, index: int) -> int:
+    """Scene seed ``index`` of a suite run with ``--seed suite_seed`` (always >= 1000)."""
+    return SCENE_SEED0 + 100 * int(suite_seed) + int(index)
+
+
+def run_args(scene_dir: str | Path, budget: float = BUDGET) -> argparse.Namespace:
+    """The ``unseen run`` options :func:`eval.commands.run.run_initial` and
+    :func:`eval.run_full.solve` read, at their defaults, for a scene directory."""
+    return argparse.Namespace(
+        input=str(scene_dir), color=None, depth=None, intrinsics=None, depth_format="auto",
+        depth_scale=1000.0, up=None, max_depth=None, instance=None, scribbles=None,
+        segmentation="auto", cell=None, no_edges=False, seed=0, budget=float(budget), mu=0.7,
+        no_symmetry=False, check_engines=False, out=str(scene_dir))
+
+
+@contextlib.contextmanager
+def scratch() -> Iterator[Path]:
+    """A temporary folder removed afterwards."""
+    with tempfile.TemporaryDirectory(prefix="unseen-suite-") as tmp:
+        yield Path(tmp)
+
+
+def make_scene(family: str, seed: int, folder: Path, *, views: int = 1, noise: str = "kinect",
+               **options: Any):
+    """:func:`synth_scenes.scene_dir.make_scene_dir`, raising when no valid scene exists."""
+    from synth_scenes.scene_dir import make_scene_dir
+
+    made = make_scene_dir(family, folder, seed=seed, views=views, noise=noise, **options)
+    if made.truth.status != "ok":
+        raise RuntimeError(f"{family} seed {seed}: no physically valid scene ({made.truth.status})")
+    return made
+
+
+def initial_from_dir(scene_dir: Path, budget: float = BUDGET):
+    """(scan, initial arrangement, run args) of a scene directory (section 4.1)."""
+    from eval.commands.run import run_initial
+
+    args = run_args(scene_dir, budget)
+    scan, initial, _ = run_initial(args)
+    return scan, initial, args
+
+
+def summary_of(result_arr, report: dict) -> dict:
+    """Counts of a pipeline result: cuboids, contacts, fixed contacts, analytic verdict."""
+    n_fixed = sum(c.type == "fixed" for c in result_arr.contacts)
+    return {"n_final": len(result_arr.cuboids), "n_contacts": len(result_arr.contacts),
+            "n_fixed": int(n_fixed), "stable": bool(report.get("stable", False)),
+            "hallucinated": len(report.get("hallucinated", []))}
+
+
+def settle_stands(arr, engine: str = "mujoco") -> bool:
+    """Whether ``arr`` stands when settled in ``engine``."""
+    from simulate.engines import settle
+
+    return bool(settle(arr, engine).stable)
+
+
+def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
+               noise: str = "kinect", budget: float = BUDGET, options: dict | None = None,
+               engine: str | None = None) -> dict:
+    """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
+
+    Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
+    ``n_gt``/``n_gt_contacts``, ``n_initial`` and :func:`summary_of`; with ``engine``
+    also ``stands`` (the result settled in that engine).
+    """
+    from eval.run_full import solve
+    from eval.suites._common import score_record
+
+    del rng  # the scene is a function of its seed; the pipeline is seeded by run_args
+    with scratch() as tmp:
+        made = make_scene(family, seed, tmp / "scene", views=views, noise=noise,
+                          **(options or {}))
+        gt = made.truth.arrangement
+        scan, initial, args = initial_from_dir(made.path, budget)
+        result = solve(initial, scan, args)
+    rec = score_record(result.arrangement, gt, initial=initial)
+    rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
+               n_gt_contacts=len(gt.contacts), n_initial=len(initial.cuboids),
+               **summary_of(result.arrangement, result.report))
+    if engine:
+        rec["stands"] = settle_stands(result.arrangement, engine)
+    return rec
+
+
+def f1_of(rec: dict, key: str = "optimized.typed") -> float:
+    """Per-scene F1 in [0, 1] of a :func:`score_record` result (NaN when absent)."""
+    from eval.metrics import PRF
+
+    cur: Any = rec
+    for part in key.split("."):
+        if not isinstance(cur, dict) or part not in cur:
+            return float("nan")
+        cur = cur[part]
+    return float(PRF(int(cur["tp"]), int(cur["n_pred"]), int(cur["n_gt"])).f1)
+
+
+def failure_note(summary) -> str:  # noqa: ANN001 - eval.runner.RunSummary
+    """A line about failed tasks for a table note (empty when none failed)."""
+    from eval.suites._common import failures_markdown
+
+    return failures_markdown(summary)
