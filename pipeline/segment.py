@@ -196,6 +196,24 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
                 labels[sel] = len(names)
                 names.append(f"scribble{int(i)}")
             todo &= ~sel
+        # what GrabCut left next to a scribbled object belongs to it (grown 3 cells at most)
+        if names and todo.any():
+            from scipy.spatial import cKDTree
+
+            owned = np.nonzero(labels >= 0)[0]
+            tree = cKDTree(world[owned])
+            for _ in range(3):
+                idx = np.nonzero(todo)[0]
+                if not len(idx):
+                    break
+                dist, nn = tree.query(world[idx], distance_upper_bound=1.5 * cell)
+                near = np.isfinite(dist)
+                if not near.any():
+                    break
+                labels[idx[near]] = labels[owned[nn[near]]]
+                todo[idx[near]] = False
+                owned = np.nonzero(labels >= 0)[0]
+                tree = cKDTree(world[owned])
     idx = np.nonzero(todo)[0]
     if len(idx):
         lab = cluster(world[idx], cell)

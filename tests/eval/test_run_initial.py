@@ -253,3 +253,26 @@ def test_every_real_scan_runs_and_finds_its_ground(tmp_path, capsys, real_data, 
     assert ground_pts > 5_000 and len(arr.cuboids) >= 1
     data = json.loads((tmp_path / "o" / "arrangement.json").read_text())
     assert data["supports"][0]["id"] == "ground"
+
+
+def test_scribbles_split_touching_boxes_with_grabcut(tmp_path, capsys):
+    import cv2
+
+    touching = [(np.array([0.0, 0.0, 0.2]), np.eye(3), np.array([0.4, 0.4, 0.4])),
+                (np.array([0.4, 0.0, 0.15]), np.eye(3), np.array([0.4, 0.4, 0.3]))]
+    fr = raycast(touching, eye=(1.2, -1.6, 1.4), target=(0.2, 0, 0.2), intr=INTR)
+    d = write_frame(fr, tmp_path / "s")
+    scr = np.zeros(fr.depth.shape, np.uint8)
+    for k in (1, 2):  # a short stroke through the middle of each box's mask
+        v, u = np.nonzero(fr.instance == k)
+        cv, cu = int(np.median(v)), int(np.median(u))
+        scr[cv - 1:cv + 2, cu - 4:cu + 5] = k
+    cv2.imwrite(str(d / "scribbles.png"), scr)
+    code, _, err = run_cli(capsys, d, "--out", tmp_path / "o", "--no-edges")
+    assert code == 0, err
+    arr = read_arrangement(tmp_path / "o" / "arrangement.json")
+    assert sorted({c.object for c in arr.cuboids}) == ["scribble1", "scribble2"]
+    for k, (_c, R, _s) in enumerate(touching):
+        vc, vs = visible_box(fr, k, R)
+        mine = [cb for cb in arr.cuboids if cb.object == f"scribble{k + 1}"]
+        assert max(box_iou(cb.center, cb.rotation, cb.size, vc, R, vs) for cb in mine) > 0.7
