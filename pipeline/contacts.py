@@ -280,6 +280,17 @@ def find_contacts(arr: Arrangement, rel_tol: float = CONTACT_REL_TOL) -> Contact
     -------
     ContactSet
     """
+    names = arr.ids + arr.support_ids
+    parts, penetrations = _contact_parts(arr, rel_tol, None)
+    return _assemble(names, len(arr.cuboids), parts, tuple(penetrations))
+
+
+def _contact_parts(arr: Arrangement, rel_tol: float, changed: np.ndarray | None):
+    """Contact parts (see :func:`_assemble`) and penetrations of ``arr``.
+
+    With ``changed`` (K,) bool, only pairs with at least one changed cuboid (and changed
+    cuboids against the supports) are evaluated.
+    """
     K = len(arr.cuboids)
     names = arr.ids + arr.support_ids
     C, R, S = arr.centers, arr.rotations, arr.sizes
@@ -287,11 +298,14 @@ def find_contacts(arr: Arrangement, rel_tol: float = CONTACT_REL_TOL) -> Contact
     corners = box_corners(C, R, S) if K else np.zeros((0, 8, 3))
     box_tol = np.maximum(rel_tol * (S.min(axis=1) if K else np.zeros(0)), CONTACT_ABS_TOL)
 
-    parts = []  # (a, b, normal, verts, vidx, u, v, gap)
+    parts = []  # (a, b, normal, verts, vidx, u, v, gap, ok)
     penetrations: list[tuple[str, str, float]] = []
 
     # ---- cuboid / cuboid
     i, j = candidate_pairs(C, R, S, box_tol)
+    if changed is not None and len(i):
+        sel = changed[i] | changed[j]
+        i, j = i[sel], j[sel]
     if len(i):
         tol = np.minimum(box_tol[i], box_tol[j])
         sep, axis, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
@@ -307,24 +321,84 @@ def find_contacts(arr: Arrangement, rel_tol: float = CONTACT_REL_TOL) -> Contact
             parts.append((i, j, normal, verts, vidx, u, v, sep, ok))
 
     # ---- cuboid / support
+    rows = np.arange(K) if changed is None else np.nonzero(changed)[0]
     for s_idx, sup in enumerate(arr.supports):
-        if not K:
+        if not len(rows):
             break
-        d = (corners - sup.point) @ sup.normal  # (K, 8)
+        d = (corners[rows] - sup.point) @ sup.normal  # (k, 8)
         dmin = d.min(axis=1)
-        for k in np.nonzero(dmin < -box_tol)[0]:
-            penetrations.append((names[k], sup.id, float(-dmin[k])))
-        ks = np.nonzero(np.abs(dmin) <= box_tol)[0]
-        if len(ks):
+        tol_r = box_tol[rows]
+        for q in np.nonzero(dmin < -tol_r)[0]:
+            penetrations.append((names[rows[q]], sup.id, float(-dmin[q])))
+        qs = np.nonzero(np.abs(dmin) <= tol_r)[0]
+        if len(qs):
+            ks = rows[qs]
             normal = np.broadcast_to(sup.normal, (len(ks), 3)).copy()
-            mask = d[ks] <= dmin[ks, None] + box_tol[ks, None]
+            mask = d[qs] <= dmin[qs, None] + tol_r[qs, None]
             # put the feature on the plane: drop each corner along -n by its height
-            flat = corners[ks] - d[ks][:, :, None] * normal[:, None, :]
+            flat = corners[ks] - d[qs][:, :, None] * normal[:, None, :]
             verts, vidx, u, v, ok = _interfaces(flat, mask, None, None, normal, box_tol[ks])
             parts.append((ks, np.full(len(ks), K + s_idx), normal, verts, vidx, u, v,
-                          dmin[ks], ok))
+                          dmin[qs], ok))
+    return parts, penetrations
 
-    return _assemble(names, K, parts, tuple(penetrations))
+
+def changed_cuboids(arr: Arrangement, base: Arrangement) -> np.ndarray:
+    """(K,) bool: cuboids whose centre, rotation or size differ (exactly) from ``base``."""
+    return (np.any(arr.centers != base.centers, axis=1)
+            | np.any(arr.sizes != base.sizes, axis=1)
+            | np.any(arr.rotations != base.rotations, axis=(1, 2)))
+
+
+def update_contacts(arr: Arrangement, base: Arrangement, base_contacts: ContactSet,
+                    rel_tol: float = CONTACT_REL_TOL) -> ContactSet:
+    """Contacts of ``arr`` from those of ``base``, which differs in some cuboids' geometry.
+
+    ``arr`` and ``base`` must have the same cuboid ids and supports.  Contacts (and
+    penetrations) between two unchanged nodes are carried over from ``base_contacts``;
+    every pair with a changed cuboid is recomputed exactly as :func:`find_contacts`
+    does, and the result is put in the same canonical order (cuboid pairs by ``(a, b)``,
+    then supports in order, each by ``a``), so it equals ``find_contacts(arr)``.  A pair
+    depends only on its two boxes, which is what makes this exact.
+    """
+    K = len(arr.cuboids)
+    names = arr.ids + arr.support_ids
+    if base.ids != arr.ids or base.support_ids != arr.support_ids or base_contacts.names != names:
+        raise ValueError("update_contacts: base arrangement has other cuboids or supports")
+    changed = changed_cuboids(arr, base)
+    if not changed.any():
+        return base_contacts
+    if changed.sum() * 2 > K:
+        return find_contacts(arr, rel_tol)
+    parts, pens = _contact_parts(arr, rel_tol, changed)
+    # carried-over contacts: neither node changed
+    bc = base_contacts
+    node_changed = np.r_[changed, np.zeros(len(arr.supports), bool)]
+    keep = ~(node_changed[bc.a] | node_changed[bc.b]) if bc.count else np.zeros(0, bool)
+    kept = np.nonzero(keep)[0]
+    if len(kept):
+        vsel = keep[bc.vertex_contact]
+        remap = -np.ones(bc.count, int)
+        remap[kept] = np.arange(len(kept))
+        parts.append((bc.a[kept], bc.b[kept], bc.normal[kept], bc.vertices[vsel],
+                      remap[bc.vertex_contact[vsel]], bc.tangent_u[kept], bc.tangent_v[kept],
+                      bc.gap[kept], np.ones(len(kept), bool)))
+    index = {n: k for k, n in enumerate(names)}
+    pens += [p for p in bc.penetrations
+             if not (node_changed[index[p[0]]] or node_changed[index[p[1]]])]
+    out = _assemble(names, K, parts, ())
+    # canonical order: cuboid pairs first by (a, b), then each support in order by a
+    group = np.where(out.b < K, -1, out.b)
+    order = np.lexsort((out.b, out.a, group))
+    inv = np.empty_like(order)
+    inv[order] = np.arange(len(order))
+    vnew = inv[out.vertex_contact]
+    vorder = np.argsort(vnew, kind="stable")
+    pen_key = [(-1 if index[y] < K else index[y], index[x], index[y]) for x, y, _ in pens]
+    pens = [pens[q] for q in sorted(range(len(pens)), key=pen_key.__getitem__)]
+    return ContactSet(names, K, out.a[order], out.b[order], out.normal[order],
+                      out.tangent_u[order], out.tangent_v[order], out.vertices[vorder],
+                      vnew[vorder], out.gap[order], tuple(pens))
 
 
 def _assemble(names, K, parts, penetrations) -> ContactSet:
@@ -356,5 +430,5 @@ def _assemble(names, K, parts, penetrations) -> ContactSet:
     )
 
 
-__all__ = ["ContactSet", "find_contacts", "tangent_frame", "pair_tolerance", "candidate_pairs",
+__all__ = ["ContactSet", "find_contacts", "update_contacts", "changed_cuboids", "tangent_frame", "pair_tolerance", "candidate_pairs",
            "sat_separation", "CORNER_SIGNS"]

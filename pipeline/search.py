@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contacts import ContactSet, find_contacts
+from .contacts import ContactSet, changed_cuboids, find_contacts, update_contacts
 from .errors import InputError
 from .extend import Edge, Option, apply_offsets, offsets_of
 from .model import Arrangement, Contact, StabilitySummary
@@ -49,6 +49,8 @@ EXACT_MAX_EDGES = 10
 #: The search accepts an arrangement only if it also stands with gravity tilted by this
 #: many degrees (see ``check_stability(tilt_deg=...)``): no knife-edge explanations.
 ROBUST_TILT_DEG = 2.0
+#: Contacts of a new geometry are updated from the closest of this many recent ones.
+RECENT_BASES = 8
 
 
 @dataclass
@@ -115,6 +117,8 @@ class _Group:
         self.mu, self.threshold, self.stats = mu, threshold, stats
         self.stab_cache: dict[tuple, tuple[bool, object]] = {}
         self.geom_cache: dict[tuple, tuple[Arrangement, ContactSet]] = {}
+        self.solve_cache: dict[bytes, tuple] = {}  # component digest -> solution
+        self.recent: list[tuple[Arrangement, ContactSet]] = []  # bases for update_contacts
 
     # -- evaluation
     def geometry(self, assignment: tuple[int, ...]) -> tuple[Arrangement, ContactSet]:
@@ -127,9 +131,17 @@ class _Group:
             return hit
         local_exts = [type(x)(self.local[x.box], x.axis, x.side, x.length) for x in exts]
         geom = apply_offsets(self.sub, offsets_of(local_exts, len(self.boxes)))
-        cs = find_contacts(geom)
+        # incremental: recompute only the pairs of boxes that differ from the closest of
+        # the recently evaluated geometries (update_contacts equals find_contacts)
+        base, fewest = None, len(self.boxes) + 1
+        for g, c in self.recent:
+            n = int(changed_cuboids(geom, g).sum())
+            if n < fewest:
+                base, fewest = (g, c), n
+        cs = find_contacts(geom) if base is None else update_contacts(geom, *base)
         self.stats.contact_evaluations += 1
         self.geom_cache[key] = (geom, cs)
+        self.recent = (self.recent + [(geom, cs)])[-RECENT_BASES:]
         return geom, cs
 
     def contacts_of(self, assignment: tuple[int, ...]) -> list[Contact]:
@@ -153,7 +165,7 @@ class _Group:
             arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
             try:
                 res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
-                                      tilt_deg=ROBUST_TILT_DEG)
+                                      tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache)
             except InputError:  # a fixed pair that does not touch in this geometry
                 out = (False, "detached")
             else:

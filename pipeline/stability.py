@@ -384,8 +384,23 @@ def _solve_qp(D: sp.spmatrix, b: np.ndarray) -> np.ndarray:
     return np.maximum(lsq_linear(D, b, bounds=(0, np.inf), tol=1e-12).x, 0.0)
 
 
+def _body_columns(system: EquilibriumSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Columns acting on each free body, grouped with one sort.
+
+    Returns ``(cols, side, starts)``: the columns (and the side, 0 or 1, on which they act)
+    of free body ``r`` are ``cols[starts[r]:starts[r + 1]]``.
+    """
+    cols_all, side_all = np.nonzero(system.col_row >= 0)
+    body_all = system.col_row[cols_all, side_all]
+    order = np.argsort(body_all, kind="stable")
+    starts = np.searchsorted(body_all[order], np.arange(len(system.free) + 1))
+    return cols_all[order], side_all[order], starts
+
+
 def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
-              tol: float = 1e-10) -> np.ndarray | None:
+              tol: float = 1e-10, bodies: np.ndarray | None = None,
+              grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+              ) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -395,6 +410,11 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     ``lambda >= 0``, which proves E = 0 (stable) without a global solve.  Stacks, walls
     and furniture resting on the floor pass; structures that need a lower body to be
     held by an upper one (counterweights) return None and go to the global solvers.
+
+    ``bodies`` (free-body row blocks) restricts the pass to one independent component
+    (its columns act only on its own bodies and on anchored ones, so its certificate is
+    independent of the rest); the returned vector is then only meaningful on the
+    component's columns.  ``grouping`` is :func:`_body_columns` of the system, reused.
     """
     from scipy.optimize import nnls
 
@@ -403,15 +423,10 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     ncol = len(system.col_vertex)
     lam = np.zeros(ncol)
     done = np.zeros(len(system.free), bool)
-    usable = np.ones(ncol, bool) if column_mask is None else column_mask.copy()
-    # columns of each body (either side), grouped with one sort
-    sides = np.nonzero(system.col_row >= 0)
-    cols_all, side_all = sides
-    body_all = system.col_row[cols_all, side_all]
-    order = np.argsort(body_all, kind="stable")
-    cols_all, side_all, body_all = cols_all[order], side_all[order], body_all[order]
-    starts = np.searchsorted(body_all, np.arange(len(system.free) + 1))
-    for r in np.argsort(-system.free_height, kind="stable"):
+    usable = np.ones(ncol, bool) if column_mask is None else column_mask
+    cols_all, side_all, starts = _body_columns(system) if grouping is None else grouping
+    rows_of = np.arange(len(system.free)) if bodies is None else np.asarray(bodies)
+    for r in rows_of[np.argsort(-system.free_height[rows_of], kind="stable")]:
         c = cols_all[starts[r]:starts[r + 1]]
         sd = side_all[starts[r]:starts[r + 1]]
         keep = usable[c]
@@ -445,54 +460,117 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     return lam
 
 
+def _component_key(system: EquilibriumSystem, backend: str, rows: np.ndarray,
+                   cols: np.ndarray) -> bytes:
+    """Digest of everything the solution of one component depends on.
+
+    The component's sub-problem is fully determined by its right-hand side, the
+    coefficients of its columns on its bodies (``blocks``; ``D`` is assembled from
+    them), which local body each column acts on, how columns group into contact
+    vertices, and the bodies' heights (the order of the load path).  Equal digests mean
+    an identical sub-problem, so a cached solution is exactly what a solve would return.
+    """
+    import hashlib
+
+    bodies_c = rows[::6] // 6
+    cr = system.col_row[cols]
+    local = np.where(cr >= 0, np.searchsorted(bodies_c, np.maximum(cr, 0)), -1)
+    _, vgroup = np.unique(system.col_vertex[cols], return_inverse=True)
+    h = hashlib.blake2b(digest_size=20)
+    h.update(f"{backend}|{len(rows)}|{len(cols)}|{system.blocks is None}".encode())
+    for part in (system.b[rows], system.free_height[bodies_c], local, vgroup):
+        h.update(np.ascontiguousarray(part).tobytes())
+    if system.blocks is not None:
+        h.update(np.ascontiguousarray(system.blocks[cols]).tobytes())
+    else:
+        h.update(system.D[rows][:, cols].toarray().tobytes())
+    return h.digest()
+
+
 def solve_energy(system: EquilibriumSystem, backend: str = "auto",
-                 column_mask: np.ndarray | None = None) -> tuple[np.ndarray, str]:
-    """Minimise eq. 3 group by group; return (lambda over all columns, backend used)."""
+                 column_mask: np.ndarray | None = None, *,
+                 components: list[tuple[np.ndarray, np.ndarray]] | None = None,
+                 cache: dict | None = None) -> tuple[np.ndarray, str]:
+    """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
+
+    Independent components (free bodies connected through free-free contacts, see
+    :func:`_components`) are solved separately: under ``auto`` each first tries the load
+    path certificate, then the frictionless certificate, then dense NNLS or the QP.
+    ``components`` may be passed when several right-hand sides share one system (tilted
+    gravity).  ``cache`` (a dict kept by the caller, e.g. the search) maps a digest of a
+    component's sub-problem (:func:`_component_key`) to its solution, so a node that
+    changes one box re-solves only the components that box touches.
+    """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
     D = system.D
-    if backend == "auto":
-        lam = load_path(system, column_mask)
-        if lam is not None:
-            return lam, "load-path"
     lam = np.zeros(D.shape[1])
     used = set()
-    dense = D.toarray() if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES else None
-    Dr = D.tocsr() if dense is None else None
-    for rows, cols in _components(system):
+    comps = _components(system) if components is None else components
+    dense = Dr = grouping = None
+    for rows, cols in comps:
         if column_mask is not None:
             cols = cols[column_mask[cols]]
-        if dense is not None:
-            sub_dense = dense[np.ix_(rows, cols)]
-            sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
-        else:
-            sub = Dr[rows][:, cols].tocsc()
-            sub_dense = sub.toarray() if len(cols) <= 4 * NNLS_MAX_COLUMNS else None
-        rhs = system.b[rows]
-        choice = backend
-        if choice == "auto" and sub_dense is not None:
-            x = _normal_only(sub_dense, rhs, system.col_vertex[cols])
-            if x is not None:
-                used.add("normal")
-                lam[cols] = x
+        key = None
+        if cache is not None:
+            key = _component_key(system, backend, rows, cols)
+            hit = cache.get(key)
+            if hit is not None:
+                lam[cols] = hit[0]
+                used.add(hit[1])
                 continue
-            choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"
-        if choice == "auto":
-            choice = "qp"
-        if choice == "nnls":
-            x = _solve_nnls(sub_dense if sub_dense is not None else sub.toarray(), rhs)
-        else:
-            x = _solve_qp(sub if sub is not None else sp.csc_matrix(sub_dense), rhs)
-        used.add(choice)
+        how = None
+        if backend == "auto" and system.blocks is not None:
+            if grouping is None:
+                grouping = _body_columns(system)
+            x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping)
+            if x is not None:
+                x, how = x[cols], "load-path"
+        if how is None:
+            if dense is None and Dr is None:
+                if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES:
+                    dense = D.toarray()
+                else:
+                    Dr = D.tocsr()
+            x, how = _solve_component(D, dense, Dr, system, rows, cols, backend)
+        if key is not None:
+            cache[key] = (x, how)
+        used.add(how)
         lam[cols] = x
+    if used == {"load-path"}:
+        return lam, "load-path"
     return lam, "+".join(sorted(used)) or "none"
+
+
+def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndarray, str]:
+    """Solve one component by the frictionless certificate, dense NNLS or the QP."""
+    if dense is not None:
+        sub_dense = dense[np.ix_(rows, cols)]
+        sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
+    else:
+        sub = Dr[rows][:, cols].tocsc()
+        sub_dense = sub.toarray() if len(cols) <= 4 * NNLS_MAX_COLUMNS else None
+    rhs = system.b[rows]
+    choice = backend
+    if choice == "auto" and sub_dense is not None:
+        x = _normal_only(sub_dense, rhs, system.col_vertex[cols])
+        if x is not None:
+            return x, "normal"
+        choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"
+    if choice == "auto":
+        choice = "qp"
+    if choice == "nnls":
+        x = _solve_nnls(sub_dense if sub_dense is not None else sub.toarray(), rhs)
+    else:
+        x = _solve_qp(sub if sub is not None else sp.csc_matrix(sub_dense), rhs)
+    return x, choice
 
 
 # ------------------------------------------------------------------------- entry point
 def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None,
                     backend: str = "auto", side_friction: bool = False,
-                    contacts: ContactSet | None = None, tilt_deg: float = 0.0
-                    ) -> StabilityResult:
+                    contacts: ContactSet | None = None, tilt_deg: float = 0.0,
+                    solve_cache: dict | None = None) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -512,6 +590,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
     tilt_deg : float
         When > 0, also require equilibrium with gravity tilted by this angle towards
         +-x and +-y (a robustness margin used by the search).
+    solve_cache : dict, optional
+        Solutions of independent components by digest of their sub-problem, kept by the
+        caller across calls (see :func:`solve_energy`); results are identical with or
+        without it.
 
     Returns
     -------
@@ -531,7 +613,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         if c.type == "fixed":
             fixed_mask[lookup[c.key]] = True
     system = build_system(arr, contacts, bodies, mu, side_friction, fixed_mask)
-    lam, used = solve_energy(system, backend)
+    comps = _components(system)
+    lam, used = solve_energy(system, backend, components=comps, cache=solve_cache)
     result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg
@@ -545,7 +628,7 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             b[6 * np.arange(F) + 1] = -np.sin(t) * hy
             b[6 * np.arange(F) + 2] = np.cos(t)
             tilted = replace(system, b=b)
-            lam_t, used_t = solve_energy(tilted, backend)
+            lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
             if not res_t.stable:
                 return replace(res_t, status="not robust")
