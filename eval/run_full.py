@@ -172,7 +172,8 @@ def check_engines(arr, mu: float) -> dict:
     return out
 
 
-def run_full(args: argparse.Namespace, run_initial) -> int:
+def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
+    """Run and write everything; returns (exit code, one summary line for the terminal)."""
     from pipeline.progress import Progress
 
     out = Path(args.out)
@@ -202,4 +203,4 @@ def run_full(args: argparse.Namespace, run_initial) -> int:
         line += "; engines: " + ", ".join(
             f"{k} {'stable' if v['stable'] else 'UNSTABLE'}" for k, v in engines.items())
     ok = result.report["stable"] and (not engines or all(v["stable"] for v in engines.values()))
-    return 0 if ok else 1
+    return (0 if ok else 1), line

@@ -39,33 +39,62 @@ class ImagineResult:
 
 
 def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement, int]:
-    """Shrink boxes until no pair overlaps beyond the contact tolerance."""
+    """Remove overlaps between initial boxes (they cannot be contacts).
+
+    Two overlapping boxes of the same object with the same axes are one part seen as
+    two slabs: they merge into the box that bounds both.  Otherwise both boxes give
+    way by half the overlap along the axis that separates them best (each keeps at
+    least half of its extent there).  A box reaching below a support plane loses the
+    part below it.
+    """
     repaired = 0
     for _ in range(max_rounds):
         cs = find_contacts(arr)
-        pen = [p for p in cs.penetrations if not p[1].startswith(("ground", "wall:"))]
-        sup = [p for p in cs.penetrations if p[1].startswith(("ground", "wall:"))]
-        if not pen and not sup:
+        if not cs.penetrations:
             break
-        cubs = list(arr.cuboids)
+        cubs: list[Cuboid | None] = list(arr.cuboids)
         idx = arr.index
-        for a_id, b_id, _depth in pen:
+        for a_id, b_id, _depth in cs.penetrations:
+            if b_id.startswith(("ground", "wall:")):
+                k = idx[a_id]
+                if cubs[k] is not None:
+                    cubs[k] = _lift_from_plane(cubs[k], arr.support(b_id))
+                    repaired += 1
+                continue
             i, j = idx[a_id], idx[b_id]
             ci, cj = cubs[i], cubs[j]
-            # shrink the box with fewer points (the less certain one)
-            k, o = (i, j) if ci.extra.get("points", 0) <= cj.extra.get("points", 0) else (j, i)
-            cubs[k] = _shrink_against(cubs[k], cubs[o])
+            if ci is None or cj is None:
+                continue
+            if ci.object is not None and ci.object == cj.object and _same_axes(ci, cj):
+                cubs[i], cubs[j] = _merge(ci, cj), None
+            else:
+                cubs[i] = _shrink_against(ci, cj, share=0.5)
+                cubs[j] = _shrink_against(cj, ci, share=0.5)
             repaired += 1
-        for a_id, s_id, _depth in sup:
-            k = idx[a_id]
-            cubs[k] = _lift_from_plane(cubs[k], arr.support(s_id))
-            repaired += 1
-        arr = arr.with_(cuboids=tuple(cubs))
+        arr = arr.with_(cuboids=tuple(c for c in cubs if c is not None))
     return arr, repaired
 
 
-def _shrink_against(c: Cuboid, other: Cuboid) -> Cuboid:
-    """Move the face of ``c`` that overlaps ``other`` back to just touch it."""
+def _same_axes(a: Cuboid, b: Cuboid, cos_tol: float = np.cos(np.radians(5))) -> bool:
+    """True when the boxes' axes coincide up to order and sign (within 5 degrees)."""
+    M = np.abs(a.rotation.T @ b.rotation)
+    return bool(np.all(M.max(axis=1) > cos_tol))
+
+
+def _merge(a: Cuboid, b: Cuboid) -> Cuboid:
+    """The box in ``a``'s frame that bounds both ``a`` and ``b`` (keeps ``a``'s id)."""
+    local = (b.corners() - a.center) @ a.rotation
+    lo = np.minimum(-a.size / 2, local.min(axis=0))
+    hi = np.maximum(a.size / 2, local.max(axis=0))
+    center = a.center + a.rotation @ ((lo + hi) / 2)
+    extra = dict(a.extra)
+    extra["points"] = int(a.extra.get("points", 0)) + int(b.extra.get("points", 0))
+    obs = ObservedBox(center, hi - lo)
+    return Cuboid(a.id, center, a.rotation, hi - lo, a.density, a.object, obs, extra)
+
+
+def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0) -> Cuboid:
+    """Move the face of ``c`` that overlaps ``other`` back by ``share`` of the overlap."""
     tol = float(pair_tolerance(c.size[None], other.size[None])[0])
     best = None
     for ax in range(3):
@@ -79,7 +108,7 @@ def _shrink_against(c: Cuboid, other: Cuboid) -> Cuboid:
     if best is None:
         return c
     overlap, ax, side = best
-    cut = min(overlap - 0.5 * tol, 0.9 * c.size[ax])
+    cut = min(share * overlap + 0.25 * tol, 0.5 * c.size[ax])
     if cut <= 0:
         return c
     size = c.size.copy()

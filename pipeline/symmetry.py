@@ -3,8 +3,8 @@
 A part with no points cannot be extended into existence.  Where an object shows a
 repeated structure, the missing copy is added: an object with a top (its part of
 largest horizontal area) and exactly three legs below it (upright parts taller than
-wide) whose positions in the top's frame occupy three of its four quadrants gets a
-fourth leg, mirrored from a neighbouring leg into the empty quadrant.  The new part
+wide) whose positions in the top's frame occupy two or three of its four quadrants
+gets the missing legs, each mirrored from a leg of a neighbouring quadrant.  The new part
 is kept only if it does not interpenetrate anything and, when a depth image exists,
 the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
 no observed box, and takes part in the search like any other cuboid.
@@ -50,7 +50,7 @@ def _free(arr: Arrangement, cand: Cuboid) -> bool:
 
 def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                 ) -> tuple[Arrangement, list[str]]:
-    """Add mirrored fourth legs where three are seen; returns (arrangement, new ids)."""
+    """Add mirrored legs where two or three are seen; returns (arrangement, new ids)."""
     by_object: dict[str, list[int]] = {}
     for k, c in enumerate(arr.cuboids):
         if c.object is not None:
@@ -74,26 +74,33 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
             h, w = _upright_extent(c)
             if h > 1.5 * w and c.center[2] < top.center[2]:
                 legs.append(c)
-        if len(legs) != 3:
+        if not 2 <= len(legs) <= 3:
             continue
         local = np.stack([top.rotation.T @ (leg.center - top.center) for leg in legs])
-        quad = {(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]}
-        if len(quad) != 3 or any(0 in q for q in quad):
+        quads = [(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]]
+        if len(set(quads)) != len(quads) or any(0 in q for q in quads):
             continue
-        missing = [q for q in ((1, 1), (1, -1), (-1, 1), (-1, -1)) if q not in quad][0]
-        # mirror the leg that differs from the empty quadrant in x only
-        src = next(n for n, p in enumerate(local)
-                   if int(np.sign(p[0])) == -missing[0] and int(np.sign(p[1])) == missing[1])
-        p = local[src].copy()
-        p[0] = -p[0]
-        leg = legs[src]
-        new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ p, leg.rotation,
-                     leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})
-        if not _free(arr.with_(cuboids=arr.cuboids + tuple(added)), new):
-            continue
-        if views and visible_free_fraction(_box_samples(new), views, margin) > FREE_FRACTION_MAX:
-            continue
-        added.append(new)
+        for missing in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+            if missing in quads:
+                continue
+            # mirror a leg of a neighbouring quadrant (same y side first, then same x side)
+            src = next((n for n, q in enumerate(quads) if q == (-missing[0], missing[1])), None)
+            flip = 0
+            if src is None:
+                src = next((n for n, q in enumerate(quads) if q == (missing[0], -missing[1])), None)
+                flip = 1
+            if src is None:
+                continue
+            p = local[src].copy()
+            p[flip] = -p[flip]
+            leg = legs[src]
+            new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ p, leg.rotation,
+                         leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})
+            if not _free(arr.with_(cuboids=arr.cuboids + tuple(added)), new):
+                continue
+            if views and visible_free_fraction(_box_samples(new), views, margin) > FREE_FRACTION_MAX:
+                continue
+            added.append(new)
     if not added:
         return arr, []
     return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]

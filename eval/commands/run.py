@@ -174,7 +174,9 @@ def run(args: argparse.Namespace) -> int:
     if args.stage == "full":
         from eval.run_full import run_full
 
-        return run_full(args, run_initial)
+        code, line = run_full(args, run_initial)
+        print(line)
+        return code
     from pipeline.progress import Progress
 
     with Progress(None, "unseen run") as bar:
