@@ -29,7 +29,7 @@ GROUND_MIN_SHARE = 0.8
 CEILING_MIN_HEIGHT = 1.8
 #: A vertical plane is a wall only if at most this fraction of the points lie behind it
 #: (a box face has the rest of the box behind it).
-WALL_MAX_BEHIND = 0.06
+WALL_MAX_BEHIND = 0.10
 
 
 @dataclass(frozen=True)
@@ -118,7 +118,7 @@ def ransac_plane(points: np.ndarray, threshold: float, rng: np.random.Generator,
 
 
 def ransac_planes(points: np.ndarray, threshold: float, rng: np.random.Generator,
-                  max_planes: int = 6, min_fraction: float = MIN_PLANE_FRACTION,
+                  max_planes: int = 8, min_fraction: float = MIN_PLANE_FRACTION,
                   sample: int = 25000) -> list[Plane]:
     """Sequential RANSAC on a subsample of ``points``.
 
