@@ -20,7 +20,7 @@ from .planes import find_frame, scene_scale
 from .scan_io import ScanInput
 from .segment import flying_pixels, grabcut_scribbles, point_spacing, segment_objects
 
-SEGMENTATIONS = ("auto", "instance", "cluster")
+SEGMENTATIONS = ("auto", "parts", "instance", "cluster")
 #: An object needs at least this fraction of the scan's points (smaller clusters are specks).
 MIN_OBJECT_FRACTION = 1e-3
 #: Within this many pixels of an instance-mask border, a pixel whose depth differs from
@@ -67,8 +67,9 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     rng : the only source of randomness (RANSAC seeds)
     cell_rel : voxel size as a fraction of the scene diameter
     edges : snap boxes to Canny edges when a colour image exists
-    segmentation : ``auto`` (instance ids, else scribbles + GrabCut, else clustering),
-        ``instance`` (require ids) or ``cluster`` (ignore ids)
+    segmentation : ``auto`` (per-part ids with a part -> object map as ``parts``, else
+        instance ids as objects, else scribbles + GrabCut, else clustering), ``parts``,
+        ``instance`` (require ids, one cluster per object) or ``cluster`` (ignore ids)
     progress : optional callable told the name of each step as it starts
 
     Returns
@@ -128,7 +129,13 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         instance = np.where(bad[scan.pixels[:, 0], scan.pixels[:, 1]], 0, instance)
     if segmentation == "instance" and (instance is None or not np.any(instance > 0)):
         raise InputError(f"{scan.source}: --segmentation instance but the input has no instance ids")
-    if instance is not None and scan.instance_objects:
+    parts = segmentation in ("auto", "parts") and instance is not None and bool(scan.instance_objects)
+    if parts:
+        # per-part ids with a part -> object map (a synthetic scene directory): one cluster per
+        # part, named by its object, so the parts of one object stay separate boxes
+        inst = instance
+        obj_names_map = {int(k): nm for k, nm in scan.instance_objects.items()}
+    elif instance is not None and scan.instance_objects:
         names_of = scan.instance_objects
         objs = sorted(set(names_of.values()))
         lut = np.zeros(int(max(names_of)) + 1, dtype=np.int64)
@@ -148,6 +155,7 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
                                     min_points=max(30, int(MIN_OBJECT_FRACTION * len(world))))
     if (labels >= 0).sum() >= 100:  # the cell from what was segmented (stray points gone)
         cell = max(cell_rel * scene_scale(world[labels >= 0]), min_cell)
+    part_of = [int(nm[4:]) if parts and nm.startswith("inst") else None for nm in names]
     if obj_names_map:
         names = [obj_names_map.get(int(nm[4:]), nm) if nm.startswith("inst") else nm for nm in names]
     timings["segment"] = time.perf_counter() - t
@@ -194,6 +202,8 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     cuboids = []
     for i, (k, b) in enumerate(boxes):
         extra = {"points": int(b.points)}
+        if part_of[k] is not None:
+            extra["instance"] = part_of[k]  # the segmentation's part id
         if b.slanted:
             extra["slanted"] = True
         cuboids.append(Cuboid(f"b{i}", b.center, b.rotation, b.size, object=names[k],

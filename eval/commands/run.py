@@ -77,8 +77,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
     p.add_argument("--instance", help="instance id image (16-bit, 0 = none)")
     p.add_argument("--scribbles", help="scribble image: one stroke id/colour per object")
-    p.add_argument("--segmentation", default="auto", choices=["auto", "instance", "cluster"],
-                   help="auto: instance ids if present, else scribbles, else clustering")
+    p.add_argument("--segmentation", default="auto",
+                   choices=["auto", "parts", "instance", "cluster"],
+                   help="auto: per-part ids of a scene directory (parts), else instance ids as "
+                        "objects, else scribbles, else clustering")
     p.add_argument("--cell", type=float, default=None,
                    help="voxel size as a fraction of the scene diameter (default 0.005)")
     p.add_argument("--no-edges", action="store_true", help="skip the Canny edge refinement")
