@@ -78,18 +78,31 @@ class Edge:
     touching: bool = False  # already touching in the initial arrangement
 
 
-def apply_offsets(arr: Arrangement, offsets: np.ndarray) -> Arrangement:
-    """The arrangement with every box's faces pushed out by ``offsets (K, 3, 2)``."""
+def apply_offsets(arr: Arrangement, offsets: np.ndarray, memo: dict | None = None
+                  ) -> Arrangement:
+    """The arrangement with every box's faces pushed out by ``offsets (K, 3, 2)``.
+
+    ``memo`` (a dict kept by the caller for one base ``arr``) reuses the cuboid built
+    for the same box and offsets (the search applies the same few extensions often).
+    """
     if not np.any(offsets):
         return arr
     sizes = arr.sizes + offsets.sum(axis=2)
     shift = np.einsum("kij,kj->ki", arr.rotations, (offsets[:, :, 1] - offsets[:, :, 0]) / 2.0)
     centers = arr.centers + shift
-    cubs = tuple(c if not np.any(offsets[k]) else
-                 Cuboid(c.id, centers[k], c.rotation, sizes[k], c.density, c.object, c.observed,
-                        c.extra)
-                 for k, c in enumerate(arr.cuboids))
-    return arr.with_(cuboids=cubs)
+    moved = np.any(offsets != 0, axis=(1, 2))
+    cubs = list(arr.cuboids)
+    for k in np.nonzero(moved)[0].tolist():
+        key = (k, offsets[k].tobytes())
+        c = None if memo is None else memo.get(key)
+        if c is None:
+            o = arr.cuboids[k]
+            c = Cuboid(o.id, centers[k], o.rotation, sizes[k], o.density, o.object, o.observed,
+                       o.extra)
+            if memo is not None:
+                memo[key] = c
+        cubs[k] = c
+    return arr.with_(cuboids=tuple(cubs))
 
 
 def offsets_of(extensions, K: int) -> np.ndarray:

@@ -119,6 +119,7 @@ class _Group:
         self.geom_cache: dict[tuple, tuple[Arrangement, ContactSet]] = {}
         self.solve_cache: dict[bytes, tuple] = {}  # component digest -> solution
         self.recent: list[tuple[Arrangement, ContactSet]] = []  # bases for update_contacts
+        self.cuboid_memo: dict = {}  # (box, offsets) -> extended Cuboid
 
     # -- evaluation
     def geometry(self, assignment: tuple[int, ...]) -> tuple[Arrangement, ContactSet]:
@@ -130,7 +131,7 @@ class _Group:
         if hit is not None:
             return hit
         local_exts = [type(x)(self.local[x.box], x.axis, x.side, x.length) for x in exts]
-        geom = apply_offsets(self.sub, offsets_of(local_exts, len(self.boxes)))
+        geom = apply_offsets(self.sub, offsets_of(local_exts, len(self.boxes)), self.cuboid_memo)
         # incremental: recompute only the pairs of boxes that differ from the closest of
         # the recently evaluated geometries (update_contacts equals find_contacts)
         base, fewest = None, len(self.boxes) + 1

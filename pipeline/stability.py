@@ -299,15 +299,26 @@ def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]
 
     Two free bodies are connected when a column acts on both (a contact between them).
     """
-    from scipy.sparse.csgraph import connected_components
-
     F = len(system.free)
     if F == 0:
         return []
     cr = system.col_row
     both = (cr[:, 0] >= 0) & (cr[:, 1] >= 0)
-    adj = sp.coo_matrix((np.ones(int(both.sum())), (cr[both, 0], cr[both, 1])), shape=(F, F))
-    ncomp, label = connected_components(adj, directed=False)
+    # union-find over the distinct body pairs (few; cheaper than a sparse graph here)
+    parent = list(range(F))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    for x, y in np.unique(cr[both], axis=0).tolist():
+        rx, ry = find(x), find(y)
+        if rx != ry:
+            parent[max(rx, ry)] = min(rx, ry)
+    _, label = np.unique([find(x) for x in range(F)], return_inverse=True)
+    ncomp = int(label.max()) + 1
     col_body = np.where(cr[:, 0] >= 0, cr[:, 0], cr[:, 1])
     col_label = np.where(col_body >= 0, label[np.maximum(col_body, 0)], -1)
     order = np.argsort(col_label, kind="stable")
@@ -460,15 +471,14 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     return lam
 
 
-def _component_key(system: EquilibriumSystem, backend: str, rows: np.ndarray,
-                   cols: np.ndarray) -> bytes:
-    """Digest of everything the solution of one component depends on.
+def _component_digest(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndarray) -> bytes:
+    """Digest of the matrix side of one component's sub-problem (right-hand side excluded).
 
-    The component's sub-problem is fully determined by its right-hand side, the
-    coefficients of its columns on its bodies (``blocks``; ``D`` is assembled from
-    them), which local body each column acts on, how columns group into contact
-    vertices, and the bodies' heights (the order of the load path).  Equal digests mean
-    an identical sub-problem, so a cached solution is exactly what a solve would return.
+    The sub-problem is fully determined by the coefficients of its columns on its bodies
+    (``blocks``; ``D`` is assembled from them), which local body each column acts on, how
+    columns group into contact vertices, the bodies' heights (the order of the load
+    path) and the right-hand side (added by :func:`solve_energy`).  Equal digests mean an
+    identical sub-problem, so a cached solution is exactly what a solve would return.
     """
     import hashlib
 
@@ -477,8 +487,8 @@ def _component_key(system: EquilibriumSystem, backend: str, rows: np.ndarray,
     local = np.where(cr >= 0, np.searchsorted(bodies_c, np.maximum(cr, 0)), -1)
     _, vgroup = np.unique(system.col_vertex[cols], return_inverse=True)
     h = hashlib.blake2b(digest_size=20)
-    h.update(f"{backend}|{len(rows)}|{len(cols)}|{system.blocks is None}".encode())
-    for part in (system.b[rows], system.free_height[bodies_c], local, vgroup):
+    h.update(f"{len(rows)}|{len(cols)}|{system.blocks is None}".encode())
+    for part in (system.free_height[bodies_c], local, vgroup):
         h.update(np.ascontiguousarray(part).tobytes())
     if system.blocks is not None:
         h.update(np.ascontiguousarray(system.blocks[cols]).tobytes())
@@ -490,7 +500,8 @@ def _component_key(system: EquilibriumSystem, backend: str, rows: np.ndarray,
 def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                  column_mask: np.ndarray | None = None, *,
                  components: list[tuple[np.ndarray, np.ndarray]] | None = None,
-                 cache: dict | None = None) -> tuple[np.ndarray, str]:
+                 cache: dict | None = None, digests: dict | None = None
+                 ) -> tuple[np.ndarray, str]:
     """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
 
     Independent components (free bodies connected through free-free contacts, see
@@ -498,8 +509,10 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     path certificate, then the frictionless certificate, then dense NNLS or the QP.
     ``components`` may be passed when several right-hand sides share one system (tilted
     gravity).  ``cache`` (a dict kept by the caller, e.g. the search) maps a digest of a
-    component's sub-problem (:func:`_component_key`) to its solution, so a node that
-    changes one box re-solves only the components that box touches.
+    component's sub-problem (:func:`_component_digest` and the right-hand side) to its solution, so a node that
+    changes one box re-solves only the components that box touches.  ``digests`` maps
+    ``id(cols)`` of each passed component to its :func:`_component_digest` (shared by
+    several right-hand sides); it is only used when ``column_mask`` is None.
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
@@ -511,9 +524,18 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     for rows, cols in comps:
         if column_mask is not None:
             cols = cols[column_mask[cols]]
+            digests = None
         key = None
         if cache is not None:
-            key = _component_key(system, backend, rows, cols)
+            import hashlib
+
+            d = digests.get(id(cols)) if digests is not None else None
+            if d is None:
+                d = _component_digest(system, rows, cols)
+            h = hashlib.blake2b(d, digest_size=20)
+            h.update(backend.encode())
+            h.update(np.ascontiguousarray(system.b[rows]).tobytes())
+            key = h.digest()
             hit = cache.get(key)
             if hit is not None:
                 lam[cols] = hit[0]
@@ -614,7 +636,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             fixed_mask[lookup[c.key]] = True
     system = build_system(arr, contacts, bodies, mu, side_friction, fixed_mask)
     comps = _components(system)
-    lam, used = solve_energy(system, backend, components=comps, cache=solve_cache)
+    digests = None if solve_cache is None else \
+        {id(cols): _component_digest(system, rows, cols) for rows, cols in comps}
+    lam, used = solve_energy(system, backend, components=comps, cache=solve_cache,
+                             digests=digests)
     result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg
@@ -628,7 +653,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             b[6 * np.arange(F) + 1] = -np.sin(t) * hy
             b[6 * np.arange(F) + 2] = np.cos(t)
             tilted = replace(system, b=b)
-            lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache)
+            lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
+                                         digests=digests)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
             if not res_t.stable:
                 return replace(res_t, status="not robust")
