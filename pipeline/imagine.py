@@ -10,6 +10,8 @@
    nothing there;
 3. *candidates* (:mod:`pipeline.extend`) with interpenetration and visibility pruning;
 4. *search* (:mod:`pipeline.search`): fewest fixed contacts, then least added volume;
+   then parts of one object that were left apart are joined where an extension can
+   (:func:`connect_objects`: an object is one connected rigid body);
 5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
@@ -24,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .contacts import find_contacts, pair_tolerance, sat_separation
+from .errors import InputError
 from .extend import DepthView, candidate_edges, depth_noise, prune_by_visibility
-from .model import Arrangement, Cuboid, ObservedBox
+from .model import Arrangement, Contact, Cuboid, ObservedBox
 from .refine import refine
 from .search import search
 from .symmetry import hallucinate
@@ -132,6 +135,96 @@ def _lift_from_plane(c: Cuboid, sup) -> Cuboid:
     return c.with_(center=c.center + u * cut / 2, size=size)
 
 
+def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float = 0.7,
+                    threshold: float | None = None) -> tuple[Arrangement, int]:
+    """Join the parts of an object that the search left apart (an object is one rigid,
+    connected body: a table's leg reaches its top even when it could stand alone).
+
+    For each object whose parts fall into several groups through ``fixed`` contacts, the
+    cheapest same-object extension between two groups (its face pushed to where the
+    candidate put it) is applied and kept when the whole still stands and nothing
+    interpenetrates.  Returns (arrangement, joins made).
+    """
+    from .search import finalize
+    from .stability import check_stability
+
+    idx = final.index
+    joins = 0
+    for obj in sorted({c.object for c in final.cuboids if c.object is not None}):
+        members = [c.id for c in final.cuboids if c.object == obj]
+        if len(members) < 2:
+            continue
+        for _ in range(len(members)):
+            comp = _components_of(members, final.contacts)
+            if len(set(comp.values())) < 2:
+                break
+            options = []
+            for e in edges:
+                if not e.same_object or isinstance(e.b, str):
+                    continue
+                a, b = initial.cuboids[e.a].id, initial.cuboids[e.b].id
+                if a not in comp or b not in comp or comp[a] == comp[b]:
+                    continue
+                for o in e.options:
+                    if o.type == "fixed" and o.extensions:
+                        options.append((o.volume, a, b, o))
+            joined = False
+            for _vol, a, b, o in sorted(options, key=lambda t: t[0]):
+                trial = final
+                for x in o.extensions:
+                    trial = _push_face(trial, initial, x)
+                fixed = [c for c in trial.contacts if c.type == "fixed"]
+                fixed.append(Contact(a, b, "fixed"))
+                if find_contacts(trial).penetrations:
+                    continue
+                try:
+                    cand = finalize(trial, fixed, mu=mu, threshold=threshold)
+                except InputError:  # they do not touch after all
+                    continue
+                if cand.stability is not None and cand.stability.stable and \
+                        check_stability(cand, mu=mu, threshold=threshold).stable:
+                    final, joined = cand, True
+                    joins += 1
+                    break
+            if not joined:
+                break
+    del idx
+    return final, joins
+
+
+def _components_of(members: list[str], contacts) -> dict[str, int]:
+    parent = {m: m for m in members}
+
+    def find(x: str) -> str:
+        while parent[x] != x:
+            x = parent[x]
+        return x
+
+    for c in contacts:
+        if c.type == "fixed" and c.a in parent and c.b in parent:
+            parent[find(c.a)] = find(c.b)
+    roots = sorted({find(m) for m in members})
+    return {m: roots.index(find(m)) for m in members}
+
+
+def _push_face(arr: Arrangement, initial: Arrangement, x) -> Arrangement:
+    """Move face (axis, side) of cuboid ``x.box`` out to where extension ``x`` puts it."""
+    c0 = initial.cuboids[x.box]
+    k = arr.index[c0.id]
+    c = arr.cuboids[k]
+    u = c.rotation[:, x.axis] * (1.0 if x.side else -1.0)
+    target = c0.center @ u + c0.size[x.axis] / 2 + x.length
+    now = c.center @ u + c.size[x.axis] / 2
+    grow = target - now
+    if grow <= 0:
+        return arr
+    size = c.size.copy()
+    size[x.axis] += grow
+    cubs = list(arr.cuboids)
+    cubs[k] = c.with_(center=c.center + u * grow / 2, size=size)
+    return arr.with_(cuboids=tuple(cubs))
+
+
 def views_from_scan(scan, arr: Arrangement) -> list[DepthView]:
     """The depth image(s) of a loaded scan in the arrangement's world frame."""
     if scan is None or getattr(scan, "depth", None) is None or scan.intrinsics is None:
@@ -178,7 +271,10 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    final = result.arrangement
+    final, joins = connect_objects(result.arrangement, arr, edges, mu=mu, threshold=threshold)
+    timings["connect"] = time.perf_counter() - t
+
+    t = time.perf_counter()
     refined = None
     if final.stability is not None and final.stability.energy > (threshold or 1e-5) / 100:
         refined = refine(final, mu=mu, max_steps=refine_steps)
@@ -206,6 +302,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "visibility": "depth image" if views else "skipped (no camera: a bare point cloud)",
         "search": result.stats.to_json(),
         "fixed_chosen": result.n_fixed,
+        "object_joins": joins,
         "added_volume_m3": result.added_volume,
         "refine": None if refined is None else {
             "energy_before": refined.energy_before, "energy_after": refined.energy_after,

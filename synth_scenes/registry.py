@@ -14,6 +14,7 @@ from pipeline.errors import InputError
 from pipeline.model import Arrangement
 
 from . import families as f
+from .demo import make_demo
 
 #: name -> (function, accepted option names)
 FAMILIES: dict[str, tuple[Callable[..., Arrangement], tuple[str, ...]]] = {
@@ -27,6 +28,7 @@ FAMILIES: dict[str, tuple[Callable[..., Arrangement], tuple[str, ...]]] = {
     "desk": (f.make_desk, ()),
     "sofa": (f.make_sofa, ()),
     "room": (f.make_room, ("n_objects", "min_cuboids", "max_cuboids")),
+    "demo": (make_demo, ()),
 }
 
 

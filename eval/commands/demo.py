@@ -20,7 +20,7 @@ view.png, report.md).  Exit 0 when the result stands in every check."""
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", type=Path, default=Path("demo_out"),
                    help="output folder (default: demo_out)")
-    p.add_argument("--seed", type=int, default=3, help="scene seed (default 3)")
+    p.add_argument("--seed", type=int, default=2, help="scene seed (default 2)")
     p.add_argument("--family", default="demo",
                    help="scene family to synthesize (default: demo = table + hidden stack)")
     p.add_argument("--budget", type=float, default=10.0, help="search budget, seconds")
@@ -39,7 +39,10 @@ def run(args: argparse.Namespace) -> int:
     scene_dir, result_dir = out / "scene", out / "result"
     with Progress(5, "unseen demo") as bar:
         bar.update(0, "synthesizing the scene")
-        made = make_scene_dir(args.family, scene_dir, seed=args.seed)
+        # the demo camera looks from the front, so the table hides the tower's lower boxes
+        ranges = {"azimuth": (-115.0, -65.0), "elevation": (15.0, 25.0)} \
+            if args.family == "demo" else None
+        made = make_scene_dir(args.family, scene_dir, seed=args.seed, view_ranges=ranges)
         if made.truth.status != "ok":
             raise InputError(f"--family {args.family}: no physically valid scene for seed "
                              f"{args.seed}; try another --seed")
