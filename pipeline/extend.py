@@ -243,27 +243,34 @@ def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], 
     """
     K = len(arr.cuboids)
     C, R, S = arr.centers, arr.rotations, arr.sizes
-    verdict: dict[Extension, bool] = {}
-    for e in edges:
-        for o in e.options:
-            for x in o.extensions:
-                if x in verdict:
-                    continue
-                off = np.zeros((3, 2))
-                off[x.axis, x.side] = x.length
-                size = S[x.box] + off.sum(axis=1)
-                cen = C[x.box] + R[x.box] @ ((off[:, 1] - off[:, 0]) / 2.0)
-                others = np.array([k for k in range(K) if k != x.box], dtype=int)
-                if not len(others):
-                    verdict[x] = True
-                    continue
-                n = len(others)
-                tol = pair_tolerance(np.broadcast_to(size, (n, 3)), S[others])
-                sep, _, _ = sat_separation(np.broadcast_to(cen, (n, 3)),
-                                           np.broadcast_to(R[x.box], (n, 3, 3)),
-                                           np.broadcast_to(size / 2, (n, 3)), C[others],
-                                           R[others], S[others] / 2, tol)
-                verdict[x] = bool(np.all(sep >= -tol))
+    exts = list(dict.fromkeys(x for e in edges for o in e.options for x in o.extensions))
+    verdict: dict[Extension, bool] = {x: True for x in exts}
+    if exts and K > 1:
+        # every extended box against every other box at once: a world-aligned bounds
+        # test first (boxes whose inflated bounds are apart are separated, so they pass),
+        # then the separating-axis test on the remaining pairs
+        box = np.array([x.box for x in exts])
+        off = np.zeros((len(exts), 3, 2))
+        off[np.arange(len(exts)), [x.axis for x in exts], [x.side for x in exts]] = \
+            [x.length for x in exts]
+        size = S[box] + off.sum(axis=2)
+        cen = C[box] + np.einsum("xij,xj->xi", R[box], (off[:, :, 1] - off[:, :, 0]) / 2.0)
+        tol_x = pair_tolerance(size)
+        tol_k = pair_tolerance(S)
+        half_x = np.einsum("xij,xj->xi", np.abs(R[box]), size / 2.0)
+        half_k = np.einsum("kij,kj->ki", np.abs(R), S / 2.0)
+        margin = np.maximum(tol_x[:, None], tol_k[None, :])  # (X, K)
+        near = np.all(np.abs(cen[:, None, :] - C[None, :, :])
+                      <= half_x[:, None, :] + half_k[None, :, :] + margin[:, :, None], axis=2)
+        near[np.arange(len(exts)), box] = False
+        xi, ki = np.nonzero(near)
+        if len(xi):
+            tol = pair_tolerance(size[xi], S[ki])
+            sep, _, _ = sat_separation(cen[xi], R[box[xi]], size[xi] / 2, C[ki], R[ki],
+                                       S[ki] / 2, tol)
+            bad = np.unique(xi[sep < -tol])
+            for q in bad.tolist():
+                verdict[exts[q]] = False
     out, rejected = [], 0
     for e in edges:
         keep = [o for o in e.options if all(verdict[x] for x in o.extensions)]
