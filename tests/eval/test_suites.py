@@ -1,0 +1,191 @@
+"""The paper's suites (table1, perturb, density, viewpoint, complexity): quick runs write
+their tables and plots through ``unseen eval``, parallel runs equal serial ones, and the
+perturbation/density helpers obey their closed-form definitions."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from eval.cli import main
+from pipeline.model import Arrangement, box, ground
+
+pytest.importorskip("mujoco")
+
+
+def _rows(path: Path) -> list[dict]:
+    return list(csv.DictReader(path.open()))
+
+
+def _eval(suite: str, out: Path, *extra: str) -> int:
+    return main(["eval", suite, "--out", str(out), *extra])
+
+
+# ------------------------------------------------------------------------- table1
+@pytest.fixture(scope="module")
+def table1_serial(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("table1_serial")
+    assert _eval("table1", out, "--quick", "--n", "1") == 0
+    return out
+
+
+def test_table1_quick(table1_serial: Path) -> None:
+    out = table1_serial
+    for name in ("table1.md", "table1.csv", "scenes.csv", "table1.png", "command.json"):
+        assert (out / name).stat().st_size > 0
+    rows = {r["scenes"]: r for r in _rows(out / "table1.csv")}
+    assert {"stack", "all, single view", "all, 3 views fused", "paper: Synthetic",
+            "paper: Kinfu"} <= set(rows)
+    assert rows["paper: Synthetic"]["optimized F1"] == "87.2"
+    scenes = _rows(out / "scenes.csv")
+    assert [(s["family"], s["seed"], s["views"]) for s in scenes] == [
+        ("stack", "1000", "1"), ("stack", "1000", "3")]
+    # the family row and the total row of one family are the same scenes: same figures
+    assert rows["stack"]["optimized F1"] == rows["all, single view"]["optimized F1"]
+    # the table's F1 is the F1 of the task record's edge counts
+    rec = json.loads((out / "tasks" / "stack-1000-v1.json").read_text())["result"]
+    c = rec["optimized"]["typed"]
+    f1 = 2 * c["tp"] / (c["n_pred"] + c["n_gt"]) if c["n_pred"] + c["n_gt"] else 0.0
+    assert rows["stack"]["optimized F1"] == f"{100 * f1:.1f}"
+    assert rec["n_gt"] >= 2 and rec["family"] == "stack"
+    assert json.loads((out / "command.json").read_text())["suite"] == "table1"
+
+
+def test_table1_parallel_equals_serial(table1_serial: Path, tmp_path: Path) -> None:
+    assert _eval("table1", tmp_path, "--quick", "--n", "1", "--workers", "2") == 0
+    timing = json.loads((tmp_path / "timing.json").read_text())
+    assert timing["backend"] == "2 processes" and timing["n_resumed"] == 0
+    for name in ("stack-1000-v1.json", "stack-1000-v3.json"):
+        assert (tmp_path / "tasks" / name).read_bytes() == \
+            (table1_serial / "tasks" / name).read_bytes()
+    for name in ("table1.csv", "scenes.csv"):
+        assert (tmp_path / name).read_bytes() == (table1_serial / name).read_bytes()
+
+
+# ------------------------------------------------------------------------- perturb
+def _two_boxes(gap: float = 0.0) -> Arrangement:
+    return Arrangement((box("a", (0, 0, 0.25), (0.5, 0.4, 0.5)),
+                        box("b", (0, 0, 0.75 + gap), (0.3, 0.3, 0.5), yaw=0.3)), (ground(),))
+
+
+@pytest.mark.parametrize("angle", [0.0, 5.0, 15.0])
+def test_perturb_definition(angle: float) -> None:
+    from eval.suites import perturb
+
+    arr = _two_boxes(gap=0.06)
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        p, _, forced = perturb.perturb(arr, rng, angle)
+        assert not forced
+        rel = p.sizes / arr.sizes
+        assert np.all(rel >= 0.95 - 1e-12) and np.all(rel <= 1.05 + 1e-12)
+        np.testing.assert_array_equal(p.centers, arr.centers)   # about their centres
+        # each cuboid turned by exactly `angle`: trace(R_new R_old^T) = 1 + 2 cos(angle)
+        dR = p.rotations @ arr.rotations.transpose(0, 2, 1)
+        cos = (np.trace(dR, axis1=1, axis2=2) - 1) / 2
+        np.testing.assert_allclose(cos, np.cos(np.deg2rad(angle)), atol=1e-12)
+        np.testing.assert_allclose(dR @ dR.transpose(0, 2, 1), np.broadcast_to(np.eye(3), dR.shape),
+                                   atol=1e-12)
+        # the separate pair stays non-intersecting
+        assert perturb._pairs_sep(p.centers, p.rotations, p.sizes)[0] >= -perturb.OVERLAP_TOL
+        assert all(c.observed is None for c in p.cuboids) and p.contacts == ()
+
+
+def test_perturb_face_to_face_is_forced_but_least_overlapping() -> None:
+    from eval.suites import perturb
+
+    arr = _two_boxes()          # b sits on a: at 15 degrees every draw intersects
+    p, discarded, forced = perturb.perturb(arr, np.random.default_rng(1), 15.0)
+    assert forced and discarded == perturb.MAX_TRIES
+    q, _, forced0 = perturb.perturb(arr, np.random.default_rng(1), 0.0)
+    assert not forced0          # no rotation: touching faces stay touching, sizes only
+    assert perturb._pairs_sep(q.centers, q.rotations, q.sizes)[0] >= -perturb.OVERLAP_TOL
+
+
+def test_perturb_axes_are_random() -> None:
+    from eval.suites.perturb import random_rotations
+
+    R = random_rotations(np.random.default_rng(0), 400, 10.0)
+    w = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], 1)
+    axes = w / np.linalg.norm(w, axis=1, keepdims=True)
+    # uniform on the sphere: mean ~ 0, second moment ~ I/3 (not only yaw)
+    assert np.all(np.abs(axes.mean(axis=0)) < 0.1)
+    np.testing.assert_allclose(axes.T @ axes / len(axes), np.eye(3) / 3, atol=0.06)
+
+
+def test_perturb_quick(tmp_path: Path) -> None:
+    assert _eval("perturb", tmp_path, "--quick", "--n", "1") == 0
+    rows = _rows(tmp_path / "perturb.csv")
+    ours = [r for r in rows if not r["family"].startswith("paper")]
+    assert [(r["family"], r["rotation (deg)"], r["runs"]) for r in ours] == [
+        ("chair", "0", "1"), ("chair", "15", "1")]
+    assert {r["family"] for r in rows} >= {"paper: chair_01", "paper: chair_02"}
+    assert (tmp_path / "perturb.png").stat().st_size > 0
+    for r in ours:
+        assert 0.0 <= float(r["optimized F1"]) <= 100.0
+
+
+# ------------------------------------------------------------------------- density
+def test_density_scaling_is_exact() -> None:
+    from eval.suites.density import _scaled
+
+    arr = _two_boxes()
+    s = _scaled(arr, {"b"}, 5.0)
+    np.testing.assert_allclose(s.masses, arr.masses * np.array([1.0, 5.0]), rtol=1e-12)
+    np.testing.assert_array_equal(s.sizes, arr.sizes)
+
+
+def test_density_quick(tmp_path: Path) -> None:
+    assert _eval("density", tmp_path, "--quick", "--n", "1") == 0
+    rows = _rows(tmp_path / "density.csv")
+    assert [(r["family"], r["factor"], r["draws"]) for r in rows] == [("stack", "5x", "1")]
+    rec = json.loads(next((tmp_path / "tasks").glob("*.json")).read_text())["result"]
+    (d,) = rec["draws"]
+    k = rec["n_gt"]
+    assert 1 <= len(d["changed"]) <= max(1, int(0.2 * k)) and d["factor"] == 5.0
+    assert rows[0]["graph survives %"] == ("100" if d["survives"] else "0")
+    assert (tmp_path / "density.png").stat().st_size > 0
+
+
+# ------------------------------------------------------------------------- viewpoint
+def test_viewpoint_quick(tmp_path: Path) -> None:
+    from eval.suites import viewpoint
+
+    assert _eval("viewpoint", tmp_path, "--quick", "--n", "1") == 0
+    rows = _rows(tmp_path / "viewpoint.csv")
+    assert [float(r["azimuth (deg)"]) for r in rows] == [0.0, 120.0, 240.0]
+    assert len(rows) == viewpoint.QUICK_VIEWS
+    for p in sorted((tmp_path / "tasks").glob("*.json")):
+        rec = json.loads(p.read_text())["result"]
+        # FN at hidden cuboids are a subset of the FN, and hidden ids are true cuboids
+        assert rec["fn_hidden"] <= len(rec["false_negatives"])
+        assert len(rec["hidden"]) <= rec["n_gt"]
+    summary = _rows(tmp_path / "viewpoint_summary.csv")
+    assert summary[0]["views"] == "3"
+    f1s = [float(r["optimized F1"]) for r in rows]
+    assert float(summary[0]["min F1"]) == pytest.approx(min(f1s), abs=0.051)
+    assert float(summary[0]["max F1"]) == pytest.approx(max(f1s), abs=0.051)
+
+
+# ------------------------------------------------------------------------- complexity
+def test_complexity_quick(tmp_path: Path) -> None:
+    stream = io.StringIO()
+    from eval.suites import complexity
+
+    args = argparse.Namespace(out=tmp_path, seed=0, n=1, workers=1, dask=None, quick=True,
+                              stream=stream)
+    assert complexity.run(args) == 0
+    rows = {r["scenes"]: r for r in _rows(tmp_path / "complexity.csv")}
+    assert float(rows["stack 6"]["proxies"]) == 6.0        # a 6-box stack has 6 proxies
+    # every box of a stack touches something, and a stack's contacts form a connected graph
+    assert float(rows["stack 6"]["min val."]) >= 1
+    assert float(rows["stack 6"]["contacts"]) >= 6
+    assert float(rows["paper: Fig. 13"]["proxies"]) == 18
+    assert float(rows["stack 6"]["seconds"]) > 0
+    assert "Table 3" in stream.getvalue()
