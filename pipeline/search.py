@@ -498,8 +498,13 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
 def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
              threshold: float | None = None) -> Arrangement:
     """List every touching pair as a contact (``fixed`` where chosen, else ``touch``) and
-    attach the stability summary of the whole arrangement."""
-    cs = find_contacts(geom)
+    attach the stability summary of the whole arrangement.
+
+    Repeated calls on variants of one scene (the caller trying joins one at a time) reuse
+    work exactly: contacts are updated from the closest recent geometry with the same
+    cuboids (:func:`pipeline.contacts.update_contacts`), and component solutions are
+    shared through a bounded cache keyed by the digest of each sub-problem."""
+    cs = _finalize_contacts(geom)
     fixed_keys = {c.key for c in fixed}
     touching = cs.lookup()
     listed = [c for c in fixed if c.key in touching]
@@ -509,8 +514,31 @@ def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
             listed.append(c)
     listed.sort(key=lambda c: (c.key, c.type))
     arr = geom.with_(contacts=tuple(listed))
-    res = check_stability(arr, mu=mu, threshold=threshold, contacts=cs)
+    if len(_FINALIZE_SOLVES) > FINALIZE_CACHE_MAX:
+        _FINALIZE_SOLVES.clear()
+    res = check_stability(arr, mu=mu, threshold=threshold, contacts=cs,
+                          solve_cache=_FINALIZE_SOLVES)
     return arr.with_(stability=StabilitySummary(res.energy, res.stable, res.threshold))
+
+
+#: bounded memo of :func:`finalize` (exact: digests of sub-problems, same-cuboid bases)
+FINALIZE_CACHE_MAX = 4096
+_FINALIZE_SOLVES: dict[bytes, tuple] = {}
+_FINALIZE_RECENT: list[tuple[Arrangement, ContactSet]] = []
+
+
+def _finalize_contacts(geom: Arrangement) -> ContactSet:
+    base, fewest = None, len(geom.cuboids) // 2 + 1
+    for g, c in list(_FINALIZE_RECENT):
+        if g.ids != geom.ids or g.support_ids != geom.support_ids:
+            continue
+        n = int(changed_cuboids(geom, g).sum())
+        if n < fewest:
+            base, fewest = (g, c), n
+    cs = find_contacts(geom) if base is None else update_contacts(geom, *base)
+    _FINALIZE_RECENT.append((geom, cs))
+    del _FINALIZE_RECENT[:-4]
+    return cs
 
 
 __all__ = ["search", "SearchResult", "SearchStats", "finalize"]

@@ -167,7 +167,7 @@ def fixed_node_pairs(arr: Arrangement, contacts: ContactSet) -> list[tuple[int, 
 def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     """Union-find of cuboids over fixed pairs; mass, COM and size of each body."""
     K, S = len(arr.cuboids), len(arr.supports)
-    parent = np.arange(K + S)
+    parent = list(range(K + S))
 
     def find(x: int) -> int:
         while parent[x] != x:
@@ -313,7 +313,8 @@ def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]
             x = parent[x]
         return x
 
-    for x, y in np.unique(cr[both], axis=0).tolist():
+    codes = np.unique(cr[both, 0] * F + cr[both, 1])
+    for x, y in zip((codes // F).tolist(), (codes % F).tolist()):
         rx, ry = find(x), find(y)
         if rx != ry:
             parent[max(rx, ry)] = min(rx, ry)
