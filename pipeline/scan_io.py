@@ -523,13 +523,16 @@ def downsample(points: np.ndarray, colors: np.ndarray | None, inst: np.ndarray |
 # ------------------------------------------------------------------------------ entry point
 def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str | None = None,
               intrinsics: str | None = None, depth_format: str = "auto",
-              depth_scale: float = 1000.0, up: str | np.ndarray | None = None,
+              depth_scale: float | None = None, up: str | np.ndarray | None = None,
               max_depth: float | None = None, instance: str | None = None,
               scribbles: str | None = None) -> ScanInput:
     """Load any supported input (scene dir, RGB-D folder, single depth file, cloud).
 
     ``color``/``depth``/``instance``/``scribbles`` are file names, relative to a folder
-    ``path`` or absolute; ``intrinsics`` is ``"fx,fy,cx,cy"`` or a JSON file.
+    ``path`` or absolute; ``intrinsics`` is ``"fx,fy,cx,cy"`` or a JSON file;
+    ``depth_scale`` None means 1000 (millimetres).  A depth file of a known public data
+    set (see :func:`known_layout`) fills in whatever of colour, encoding and intrinsics
+    was not given.
     """
     path = Path(path)
     up_vec = parse_up(up) if isinstance(up, str) else (None if up is None else np.asarray(up, float))
@@ -558,6 +561,18 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
         if clouds and not (folder / "color.png").exists():
             return load_cloud(clouds[0], intrinsics=intrinsics, up=up_vec)
         raise InputError(f"{folder}: no depth.png here (give --depth FILE, or a .ply/.pcd cloud)")
+    preset = known_layout(depth_p)
+    notes = [f"recognised {preset['name']}"] if preset else []
+    if depth_format == "auto" and "depth_format" in preset:
+        depth_format = preset["depth_format"]
+    if depth_scale is None:
+        depth_scale = preset.get("depth_scale", 1000.0)
+    if intrinsics is None and "intrinsics" in preset and not (folder / "intrinsics.json").exists():
+        intrinsics = preset["intrinsics"]
+    if color is None and "color" in preset and not (folder / "color.png").exists():
+        color = str(preset["color"])
+    if max_depth is None:
+        max_depth = preset.get("max_depth")
     d = read_depth(depth_p, depth_format, depth_scale)
     H, W = d.shape
     color_p = resolve(color, "color.png")
@@ -589,6 +604,7 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
             scr = s.astype(np.int64)
     scan = from_rgbd(img, d, intr, T_world_cam=pose, instance_image=inst_img, scribbles=scr,
                      up=up_vec, source=str(depth_p), max_depth=max_depth)
+    scan.notes.extend(notes)
     scene_json = folder.parent / "scene.json" if folder.name == "scan" else None
     if scene_json is not None and scene_json.is_file() and inst_img is not None:
         data = read_json(scene_json)
@@ -597,6 +613,82 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
                  if isinstance(c, dict)}
         scan = replace(scan, instance_objects=names)
     return scan
+
+
+#: Kinect v1 / PrimeSense default intrinsics at 640x480 (what Open3D assumes for its test data).
+KINECT_DEFAULT = "525,525,319.5,239.5"
+#: RAPter's ``Intrinsics::TIANJIAS``: the Kinect of Shao et al.'s box captures (registered depth).
+SHAO_TIANJIAS = "519.30334103339817,518.16401430246583,328.50951551345941,252.82555217253503"
+
+
+def known_layout(depth: Path) -> dict:
+    """Defaults for a depth file of a known public data set, from its name and siblings.
+
+    ============================  ==========================================================
+    ``<x>_depth16bits.dat``        Shao/RAPter Kinect: float32-dat, ``derived/<x>_rgb_640x480.png``,
+                                   TIANJIAS intrinsics
+    ``sync_depth_<k>.png``         Metric3D NYU: ``rgb_<k>.jpg``; ``cam_in`` and ``depth_scale``
+                                   from ``test_annotations.json``
+    ``NYU_depth.pgm``              Open3D test data NYU raw: nyu-disparity, ``NYU_color.ppm``
+    ``TUM_depth.png``              TUM: depth / 5000, ``TUM_color.png``
+    ``SUN_depth.png``              SUN: sun-bitrot, ``SUN_color.jpg``, depth cut at 7 m
+    ``<k>_depth_mm.png``           SUN RGB-D (mmdet3d): K from ``<k>_calib.txt`` (column-major),
+                                   ``<k>_image.jpg`` (same folder or its parent)
+    ============================  ==========================================================
+
+    Returns a dict with some of ``name color depth_format depth_scale intrinsics max_depth``
+    (empty when the file is not recognised).
+    """
+    name, folder = depth.name, depth.parent
+    m = re.fullmatch(r"(.+)_depth16bits\.dat", name)
+    if m:
+        out = {"name": "Shao/RAPter Kinect capture", "depth_format": "float32-dat",
+               "intrinsics": SHAO_TIANJIAS}
+        col = folder / "derived" / f"{m[1]}_rgb_640x480.png"
+        if col.is_file():
+            out["color"] = col
+        return out
+    m = re.fullmatch(r"sync_depth_(\d+)\.png", name)
+    if m:
+        out = {"name": "Metric3D NYU frame", "depth_scale": 1000.0}
+        if (folder / f"rgb_{m[1]}.jpg").is_file():
+            out["color"] = folder / f"rgb_{m[1]}.jpg"
+        ann = folder / "test_annotations.json"
+        if ann.is_file():
+            try:
+                files = json.loads(ann.read_text()).get("files", [])
+                entry = next(f for f in files if str(f.get("depth", "")).endswith(name))
+                out["intrinsics"] = ",".join(str(float(v)) for v in entry["cam_in"])
+                out["depth_scale"] = float(entry.get("depth_scale", 1000.0))
+            except (OSError, ValueError, StopIteration, KeyError, TypeError, AttributeError):
+                pass
+        return out
+    m = re.fullmatch(r"(NYU|TUM|SUN)_depth\.(pgm|png)", name)
+    if m:
+        kind = m[1]
+        out = {"name": f"Open3D test data {kind} frame", "intrinsics": KINECT_DEFAULT}
+        out.update({"NYU": {"depth_format": "nyu-disparity"}, "TUM": {"depth_scale": 5000.0},
+                    "SUN": {"depth_format": "sun-bitrot", "max_depth": 7.0}}[kind])
+        for ext in ("ppm", "png", "jpg"):
+            if (folder / f"{kind}_color.{ext}").is_file():
+                out["color"] = folder / f"{kind}_color.{ext}"
+                break
+        return out
+    m = re.fullmatch(r"(\d+)_depth_mm\.png", name)
+    if m:
+        out = {"name": "SUN RGB-D frame", "depth_scale": 1000.0}
+        for base in (folder, folder.parent):
+            calib, image = base / f"{m[1]}_calib.txt", base / f"{m[1]}_image.jpg"
+            if image.is_file():
+                out["color"] = image
+            if calib.is_file():
+                try:
+                    K = np.array(calib.read_text().splitlines()[1].split(), dtype=float)
+                    out["intrinsics"] = f"{K[0]},{K[4]},{K[6]},{K[7]}"  # column-major 3x3
+                except (OSError, ValueError, IndexError):
+                    pass
+        return out
+    return {}
 
 
 def parse_up(text: str) -> np.ndarray:

@@ -24,28 +24,26 @@ inputs:
   a point cloud (.ply, .pcd ascii/binary/binary_compressed with 'label', .npz 'pc'):
                                      unseen run cloud.pcd --out out
 
-the real scans in {R} (each loads with these flags):
+the real scans in {R} load with no flag (a depth file of a known data set
+brings its colour image, encoding and intrinsics: pipeline.scan_io.known_layout);
+explicit flags override, and the same works for any folder with them:
   mOSD organised PCD with labels (object id = label // 10, table labels -> background):
     unseen run {R}/osd_stacked_boxes/test16.pcd --out out/osd16
-  Shao/RAPter Kinect boxes (float32 .dat depth in metres, colour cropped from a screenshot):
-    unseen run {R}/shao_kinect_boxes/3boxes_depth16bits.dat --color derived/3boxes_rgb_640x480.png \\
-      --intrinsics 519.3033,518.1640,328.5095,252.8256 --out out/shao3
-  Metric3D NYU (registered jpg + mm png):
-    unseen run {R}/metric3d_nyu --color rgb_00000.jpg --depth sync_depth_00000.png \\
-      --intrinsics 518.8579,519.46961,325.58245,253.73617 --out out/nyu0
-  Open3D test data, NYU raw (little-endian PGM disparity):
-    unseen run {R}/open3d_testdata_rgbd --color NYU_color.ppm --depth NYU_depth.pgm \\
-      --depth-format nyu-disparity --intrinsics 525,525,319.5,239.5 --out out/nyu_raw
-  Open3D test data, TUM (depth / 5000):
+  Shao/RAPter Kinect boxes (float32 .dat metres; derived/<x>_rgb_640x480.png; TIANJIAS K):
+    unseen run {R}/shao_kinect_boxes/3boxes_depth16bits.dat --out out/shao3
+  Metric3D NYU (registered jpg + mm png; K and scale from test_annotations.json):
+    unseen run {R}/metric3d_nyu/sync_depth_00050.png --out out/nyu50
+  Open3D test data: NYU raw (little-endian PGM disparity), TUM (depth / 5000), SUN
+  (bit-rotated mm, cut at 7 m); Kinect default K 525,525,319.5,239.5:
+    unseen run {R}/open3d_testdata_rgbd/NYU_depth.pgm --out out/nyu_raw
+    unseen run {R}/open3d_testdata_rgbd/TUM_depth.png --out out/tum
+    unseen run {R}/open3d_testdata_rgbd/SUN_depth.png --out out/sun
+  SUN RGB-D (mmdet3d) frame, derived mm depth, K from 000001_calib.txt:
+    unseen run {R}/sunrgbd_mmdet3d/derived/000001_depth_mm.png --out out/sunrgbd1
+  SUN RGB-D points only (upright, z up):  unseen run {R}/sunrgbd_mmdet3d/000001_lidar.npz --out out/s1pc
+  the same with explicit flags, e.g. TUM:
     unseen run {R}/open3d_testdata_rgbd --color TUM_color.png --depth TUM_depth.png \\
       --depth-scale 5000 --intrinsics 525,525,319.5,239.5 --out out/tum
-  Open3D test data, SUN (bit-rotated depth):
-    unseen run {R}/open3d_testdata_rgbd --color SUN_color.jpg --depth SUN_depth.png \\
-      --depth-format sun-bitrot --intrinsics 525,525,319.5,239.5 --max-depth 7 --out out/sun
-  SUN RGB-D (mmdet3d) frame, derived mm depth:
-    unseen run {R}/sunrgbd_mmdet3d --color 000001_image.jpg --depth derived/000001_depth_mm.png \\
-      --intrinsics 529.5,529.5,365,265 --out out/sunrgbd1
-  SUN RGB-D points only (upright, z up):  unseen run {R}/sunrgbd_mmdet3d/000001_lidar.npz --out out/s1pc
 
 If the ground is not found, say which way is up in the input frame: --up -y (camera
 frames, y down), --up z (z-up clouds).
@@ -71,8 +69,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--depth-format", default="auto",
                    choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
                    help="depth encoding (auto: .dat -> float32-dat, else png / --depth-scale)")
-    p.add_argument("--depth-scale", type=float, default=1000.0,
-                   help="raw depth units per metre for png (1000 = mm, 5000 = TUM)")
+    p.add_argument("--depth-scale", type=float, default=None,
+                   help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
     p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
     p.add_argument("--instance", help="instance id image (16-bit, 0 = none)")

@@ -226,28 +226,32 @@ def test_real_shao_boxes_find_floor_and_walls(tmp_path, capsys, real_data):
     assert 0.5 < np.array(arr.meta["camera_pose"])[2, 3] < 2.0
 
 
-REAL_SLOW = [
-    ("metric3d_nyu", ["--color", "rgb_00050.jpg", "--depth", "sync_depth_00050.png",
-                      "--intrinsics", "518.8579,519.46961,325.58245,253.73617"]),
+REAL_SLOW = [  # every real scan, each with no flag (known layouts) or the documented ones
+    ("metric3d_nyu/sync_depth_00000.png", []),
+    ("metric3d_nyu/sync_depth_00050.png", []),
+    ("metric3d_nyu/sync_depth_00100.png", []),
     ("open3d_testdata_rgbd", ["--color", "TUM_color.png", "--depth", "TUM_depth.png",
                               "--depth-scale", "5000", "--intrinsics", "525,525,319.5,239.5"]),
-    ("open3d_testdata_rgbd", ["--color", "NYU_color.ppm", "--depth", "NYU_depth.pgm",
-                              "--depth-format", "nyu-disparity", "--intrinsics", "525,525,319.5,239.5"]),
-    ("open3d_testdata_rgbd", ["--color", "SUN_color.jpg", "--depth", "SUN_depth.png",
-                              "--depth-format", "sun-bitrot", "--intrinsics", "525,525,319.5,239.5",
-                              "--max-depth", "7"]),
-    ("sunrgbd_mmdet3d", ["--color", "000004_image.jpg", "--depth", "derived/000004_depth_mm.png",
-                         "--intrinsics", "529.5,529.5,365,265"]),
-    ("shao_kinect_boxes", ["--depth", "5boxes_depth16bits.dat", "--color",
-                           "derived/5boxes_rgb_640x480.png", "--intrinsics",
-                           "519.3033,518.1640,328.5095,252.8256"]),
+    ("open3d_testdata_rgbd/NYU_depth.pgm", []),
+    ("open3d_testdata_rgbd/SUN_depth.png", []),
+    ("sunrgbd_mmdet3d/derived/000001_depth_mm.png", []),
+    ("sunrgbd_mmdet3d/derived/000002_depth_mm.png", []),
+    ("sunrgbd_mmdet3d/derived/000003_depth_mm.png", []),
+    ("sunrgbd_mmdet3d/derived/000004_depth_mm.png", []),
+    ("shao_kinect_boxes/5boxes_depth16bits.dat", []),
+    ("osd_stacked_boxes/test18.pcd", []),
+    ("osd_stacked_boxes/test19.pcd", []),
+    ("osd_stacked_boxes/test22.pcd", []),
+    ("osd_stacked_boxes/test23.pcd", []),
+    ("osd_stacked_boxes/test50.pcd", []),
     ("osd_stacked_boxes/test60.pcd", []),
+    ("osd_stacked_boxes/learn24.pcd", []),
     ("sunrgbd_mmdet3d/000001_lidar.npz", []),
 ]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("where", "flags"), REAL_SLOW, ids=[f"{w}{'-' + f[1] if f else ''}" for w, f in REAL_SLOW])
+@pytest.mark.parametrize(("where", "flags"), REAL_SLOW, ids=[f"{w}{'-' + f[3] if f else ''}" for w, f in REAL_SLOW])
 def test_every_real_scan_runs_and_finds_its_ground(tmp_path, capsys, real_data, where, flags):
     arr, ground_pts = _run_real(capsys, tmp_path / "o", real_data / where, *flags)
     assert ground_pts > 5_000 and len(arr.cuboids) >= 1

@@ -203,7 +203,7 @@ REAL_CASES = [
                          ids=[f"{c[0]}-{c[1]['depth']}" for c in REAL_CASES])
 def test_real_frames_load_with_documented_ranges(real_data, folder, kw, lo, hi):
     """Depth ranges quoted in each SOURCE.md are reproduced (the encodings are right)."""
-    scan = load_scan(real_data / folder, **kw)
+    scan = load_scan(real_data / folder, **kw, max_depth=1e9)  # no range cut here
     z = scan.points[:, 2]
     if lo is None:  # SUN RGB-D: the range is quoted over its four frames, 1.05-8.0 m
         assert 1.04 <= z.min() < 2.0 and 7.0 < z.max() <= 8.01
@@ -217,3 +217,24 @@ def test_real_sunrgbd_points_npz(real_data):
     scan = load_cloud(real_data / "sunrgbd_mmdet3d" / "000001_lidar.npz")
     assert scan.n == 50000 and np.array_equal(scan.up, [0, 0, 1])
     assert scan.colors.min() >= 0 and scan.colors.max() <= 1
+
+
+@pytest.mark.parametrize(("folder", "kw", "lo", "hi"), REAL_CASES,
+                         ids=[f"{c[0]}-{c[1]['depth']}" for c in REAL_CASES])
+def test_real_depth_file_alone_loads_like_the_documented_flags(real_data, folder, kw, lo, hi):
+    """``unseen run <depth file>`` needs no flag for the known data sets."""
+    flagged = load_scan(real_data / folder, **{**kw, **({"max_depth": 7.0} if "SUN_" in kw["depth"] else {})})
+    alone = load_scan(real_data / folder / kw["depth"])
+    a, b = alone.intrinsics, flagged.intrinsics
+    assert np.allclose([a.fx, a.fy, a.cx, a.cy], [b.fx, b.fy, b.cx, b.cy], atol=1e-4)
+    assert (a.width, a.height) == (b.width, b.height)
+    assert np.array_equal(alone.image, flagged.image)
+    assert alone.points.shape == flagged.points.shape
+    assert np.allclose(alone.points, flagged.points, atol=1e-5)
+    assert any(n.startswith("recognised") for n in alone.notes)
+
+
+def test_sunrgbd_intrinsics_come_from_calib_column_major(real_data):
+    scan = load_scan(real_data / "sunrgbd_mmdet3d" / "derived" / "000002_depth_mm.png")
+    i = scan.intrinsics
+    assert (i.fx, i.fy, i.cx, i.cy, i.width, i.height) == (529.5, 529.5, 365.0, 265.0, 730, 530)
