@@ -73,13 +73,15 @@ def visible_parts(scene_dir: Path) -> dict[str, list]:
     return out
 
 
-def evaluate_scene(scene_dir: Path, edges: bool, rng: np.random.Generator) -> list[dict]:
+def evaluate_scene(scene_dir: Path, edges: bool, rng: np.random.Generator,
+                   segmentation: str = "instance") -> list[dict]:
     from pipeline.initial import initial_cuboids
     from pipeline.scan_io import load_scan
 
     truth = visible_parts(scene_dir)
     scan = load_scan(scene_dir)
-    arr, report = initial_cuboids(scan, rng=np.random.default_rng(0), edges=edges)
+    arr, report = initial_cuboids(scan, rng=np.random.default_rng(0), edges=edges,
+                                  segmentation=segmentation)
     rows = []
     for obj, vis in truth.items():
         pred = [(c.center, c.rotation, c.size) for c in arr.cuboids if c.object == obj]
@@ -95,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", required=True)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1000, 1001])
     ap.add_argument("--families", nargs="+", default=list(FAMILIES))
+    ap.add_argument("--segmentation", default="instance",
+                    help="instance: object masks, slabs split objects into parts (default); "
+                         "parts: per-part masks; cluster: no masks")
     args = ap.parse_args(argv)
     os.environ.setdefault("MUJOCO_GL", "egl")
     from synth_scenes.scene_dir import make_scene_dir
@@ -114,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
                         sys.stderr.write(f"skip {fam} {seed} {noise}: {exc}\n")
                         continue
                     for edges in (False, True):
-                        for r in evaluate_scene(d, edges, rng):
+                        for r in evaluate_scene(d, edges, rng, args.segmentation):
                             records.append({"family": fam, "seed": seed, "noise": noise,
                                             "edges": edges, **r})
                     sys.stderr.write(f"{fam} {seed} {noise} done\n")
