@@ -210,7 +210,7 @@ class EquilibriumSystem:
     system and drops the columns of contacts it switches off (``column_mask``).
     """
 
-    D: sp.csc_matrix
+    _D: sp.csc_matrix | None  # assembled from ``blocks`` on first use (see ``D``)
     b: np.ndarray
     free: np.ndarray  # (F,) body index of each free body (row block)
     row_scale: np.ndarray  # (6F,) multiply residual rows to get N / N m
@@ -221,6 +221,29 @@ class EquilibriumSystem:
     blocks: np.ndarray  # (ncol, 2, 6) scaled coefficients of each column on its two bodies
     col_row: np.ndarray  # (ncol, 2) free-body row block of each side, -1 when anchored
     free_height: np.ndarray  # (F,) COM height of each free body
+
+    @property
+    def D(self) -> sp.csc_matrix:
+        """(6F, ncol) the scaled equilibrium matrix (assembled lazily: certificates that
+        work body by body never need it)."""
+        if self._D is None:
+            c_idx, s_idx = np.nonzero(self.col_row >= 0)
+            rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
+            D = sp.csc_matrix((self.blocks[c_idx, s_idx].ravel(),
+                               (rows.ravel(), np.repeat(c_idx, 6))),
+                              shape=(6 * len(self.free), len(self.col_vertex)))
+            object.__setattr__(self, "_D", D)
+        return self._D
+
+    def residual(self, lam: np.ndarray) -> np.ndarray:
+        """(6F,) ``D lambda - b``."""
+        if self._D is not None or self.blocks is None:
+            return self.D @ lam - self.b
+        c_idx, s_idx = np.nonzero(self.col_row >= 0)
+        rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
+        w = self.blocks[c_idx, s_idx] * lam[c_idx, None]
+        return np.bincount(rows.ravel(), weights=w.ravel(), minlength=6 * len(self.free)) \
+            - self.b
 
 
 def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: float,
@@ -280,16 +303,11 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
         blocks[use, side, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
         col_row[use, side] = row_of_body[gu]
     nrow = 6 * len(free)
-    has = col_row >= 0
-    c_idx, s_idx = np.nonzero(has)
-    rows = (6 * col_row[c_idx, s_idx])[:, None] + np.arange(6)
-    D = sp.csc_matrix((blocks[c_idx, s_idx].ravel(), (rows.ravel(), np.repeat(c_idx, 6))),
-                      shape=(nrow, ncol))
     b = np.zeros(nrow)
     b[6 * np.arange(len(free)) + 2] = 1.0  # contacts must lift each body's weight
     row_scale = np.repeat(W[free], 6) * np.tile([1, 1, 1, 0, 0, 0], len(free)) + \
         np.repeat(W[free] * bodies.size[free], 6) * np.tile([0, 0, 0, 1, 1, 1], len(free))
-    return EquilibriumSystem(D, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
+    return EquilibriumSystem(None, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
                              col_row, bodies.com[free, 2])
 
 
@@ -517,8 +535,7 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
-    D = system.D
-    lam = np.zeros(D.shape[1])
+    lam = np.zeros(len(system.col_vertex))
     used = set()
     comps = _components(system) if components is None else components
     dense = Dr = grouping = None
@@ -551,11 +568,12 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 x, how = x[cols], "load-path"
         if how is None:
             if dense is None and Dr is None:
+                D = system.D
                 if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES:
                     dense = D.toarray()
                 else:
                     Dr = D.tocsr()
-            x, how = _solve_component(D, dense, Dr, system, rows, cols, backend)
+            x, how = _solve_component(system.D, dense, Dr, system, rows, cols, backend)
         if key is not None:
             cache[key] = (x, how)
         used.add(how)
@@ -663,7 +681,7 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
 
 
 def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> StabilityResult:
-    resid = system.D @ lam - system.b
+    resid = system.residual(lam)
     F = len(system.free)
     per_row = resid.reshape(F, 6) if F else np.zeros((0, 6))
     body_energy = np.zeros(len(bodies.mass))
@@ -712,7 +730,7 @@ def contact_force_newtons(arr: Arrangement, mu: float = DEFAULT_MU,
 def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
     """The same system in newtons (rows multiplied back by their scale)."""
     S = sp.diags(system.row_scale)
-    return replace(system, D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
+    return replace(system, _D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
                    row_scale=np.ones_like(system.row_scale), blocks=None)
 
 
