@@ -153,15 +153,24 @@ class _Group:
                 out.append(Contact(a, b, "fixed"))
         return out
 
-    def evaluate(self, assignment: tuple[int, ...]):
-        """(stable, result-or-status) of an assignment, cached."""
+    def evaluate(self, assignment: tuple[int, ...], quick: bool = True):
+        """(stable, result-or-status) of an assignment, cached.
+
+        With ``quick``, a box that touches nothing (its body has no contact force, so its
+        weight is unbalanced: E >= 1) answers "floating" without the equilibrium solve.
+        """
         hit = self.stab_cache.get(assignment)
         if hit is not None:
             self.stats.cache_hits += 1
             return hit
         geom, cs = self.geometry(assignment)
+        touched = np.zeros(len(self.boxes), bool)
+        touched[cs.a] = True
+        touched[cs.b[cs.b < len(self.boxes)]] = True
         if cs.penetrations:
             out = (False, "penetration")
+        elif quick and not touched.all():
+            out = (False, "floating")
         else:
             arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
             try:
@@ -225,7 +234,7 @@ class _Group:
 
     def run(self, deadline: float) -> tuple[tuple[int, ...], bool, object]:
         root = self.root()
-        ok, res = self.evaluate(root)
+        ok, res = self.evaluate(root, quick=False)
         self.stats.nodes += 1
         if not ok:
             return root, False, res
