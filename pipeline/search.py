@@ -118,7 +118,7 @@ class _Group:
         self.stab_cache: dict[tuple, tuple[bool, object]] = {}
         self.geom_cache: dict[tuple, tuple[Arrangement, ContactSet]] = {}
         self.solve_cache: dict[bytes, tuple] = {}  # component digest -> solution
-        self.recent: list[tuple[Arrangement, ContactSet]] = []  # bases for update_contacts
+        self.recent: list[tuple] = []  # (extension keys, geometry, contacts) bases
         self.cuboid_memo: dict = {}  # (box, offsets) -> extended Cuboid
 
     # -- evaluation
@@ -134,15 +134,17 @@ class _Group:
         geom = apply_offsets(self.sub, offsets_of(local_exts, len(self.boxes)), self.cuboid_memo)
         # incremental: recompute only the pairs of boxes that differ from the closest of
         # the recently evaluated geometries (update_contacts equals find_contacts)
-        base, fewest = None, len(self.boxes) + 1
-        for g, c in self.recent:
-            n = int(changed_cuboids(geom, g).sum())
-            if n < fewest:
+        # (boxes whose extensions differ bound the boxes that changed)
+        keyset = frozenset(key)
+        base, fewest = None, None
+        for ks, g, c in self.recent:
+            n = len({x[0] for x in keyset ^ ks})
+            if fewest is None or n < fewest:
                 base, fewest = (g, c), n
         cs = find_contacts(geom) if base is None else update_contacts(geom, *base)
         self.stats.contact_evaluations += 1
         self.geom_cache[key] = (geom, cs)
-        self.recent = (self.recent + [(geom, cs)])[-RECENT_BASES:]
+        self.recent = (self.recent + [(keyset, geom, cs)])[-RECENT_BASES:]
         return geom, cs
 
     def contacts_of(self, assignment: tuple[int, ...]) -> list[Contact]:

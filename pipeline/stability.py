@@ -674,10 +674,21 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             tilted = replace(system, b=b)
             lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
                                          digests=digests)
+            if _energy(bodies, tilted, lam_t) < threshold:
+                continue  # (the full result is only built when it is the answer)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
             if not res_t.stable:
                 return replace(res_t, status="not robust")
     return result
+
+
+def _energy(bodies, system, lam) -> float:
+    """E of a solution, summed exactly as :func:`_result` sums it."""
+    resid = system.residual(lam)
+    F = len(system.free)
+    body_energy = np.zeros(len(bodies.mass))
+    body_energy[system.free] = (resid.reshape(F, 6) ** 2).sum(axis=1) if F else 0.0
+    return float(body_energy.sum())
 
 
 def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> StabilityResult:
