@@ -105,13 +105,20 @@ class ContactSet:
         return out
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` over the last axis (length 3), same arithmetic, less overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def tangent_frame(normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Right-handed unit tangents ``(u, v)`` orthogonal to unit ``normal (M, 3)``."""
     n = np.asarray(normal, dtype=float).reshape(-1, 3)
     helper = np.where(np.abs(n[:, [0]]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-    u = np.cross(helper, n)
+    u = cross(helper, n)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
-    v = np.cross(n, u)
+    v = cross(n, u)
     return u, v
 
 
@@ -174,12 +181,12 @@ def sat_separation(ca: np.ndarray, Ra: np.ndarray, ha: np.ndarray, cb: np.ndarra
     """
     P = len(ca)
     face_axes = np.concatenate([Ra.transpose(0, 2, 1), Rb.transpose(0, 2, 1)], axis=1)  # (P,6,3)
-    cross = np.cross(Ra.transpose(0, 2, 1)[:, :, None, :], Rb.transpose(0, 2, 1)[:, None, :, :])
-    cross = cross.reshape(P, 9, 3)
-    norms = np.linalg.norm(cross, axis=2)
+    edge = cross(Ra.transpose(0, 2, 1)[:, :, None, :], Rb.transpose(0, 2, 1)[:, None, :, :])
+    edge = edge.reshape(P, 9, 3)
+    norms = np.linalg.norm(edge, axis=2)
     valid_cross = norms > 1e-6
-    cross = cross / np.where(valid_cross, norms, 1.0)[:, :, None]
-    axes = np.concatenate([face_axes, cross], axis=1)  # (P, 15, 3)
+    edge = edge / np.where(valid_cross, norms, 1.0)[:, :, None]
+    axes = np.concatenate([face_axes, edge], axis=1)  # (P, 15, 3)
     d = cb - ca
     proj_d = np.einsum("pk,pak->pa", d, axes)
     ra = np.einsum("pj,paj->pa", ha, np.abs(np.einsum("pkj,pak->paj", Ra, axes)))
@@ -321,7 +328,9 @@ def _contact_parts(arr: Arrangement, rel_tol: float, changed: np.ndarray | None)
             parts.append((i, j, normal, verts, vidx, u, v, sep, ok))
 
     # ---- cuboid / support
+    # (all supports in one batch: rows by support, then by cuboid, as listed)
     rows = np.arange(K) if changed is None else np.nonzero(changed)[0]
+    sup_parts = []  # (ks, support node, normal, flat corners, mask, gap)
     for s_idx, sup in enumerate(arr.supports):
         if not len(rows):
             break
@@ -337,9 +346,11 @@ def _contact_parts(arr: Arrangement, rel_tol: float, changed: np.ndarray | None)
             mask = d[qs] <= dmin[qs, None] + tol_r[qs, None]
             # put the feature on the plane: drop each corner along -n by its height
             flat = corners[ks] - d[qs][:, :, None] * normal[:, None, :]
-            verts, vidx, u, v, ok = _interfaces(flat, mask, None, None, normal, box_tol[ks])
-            parts.append((ks, np.full(len(ks), K + s_idx), normal, verts, vidx, u, v,
-                          dmin[qs], ok))
+            sup_parts.append((ks, np.full(len(ks), K + s_idx), normal, flat, mask, dmin[qs]))
+    if sup_parts:
+        ks, bs, normal, flat, mask, gap = (np.concatenate(x) for x in zip(*sup_parts))
+        verts, vidx, u, v, ok = _interfaces(flat, mask, None, None, normal, box_tol[ks])
+        parts.append((ks, bs, normal, verts, vidx, u, v, gap, ok))
     return parts, penetrations
 
 
@@ -430,5 +441,5 @@ def _assemble(names, K, parts, penetrations) -> ContactSet:
     )
 
 
-__all__ = ["ContactSet", "find_contacts", "update_contacts", "changed_cuboids", "tangent_frame", "pair_tolerance", "candidate_pairs",
+__all__ = ["ContactSet", "find_contacts", "update_contacts", "changed_cuboids", "cross", "tangent_frame", "pair_tolerance", "candidate_pairs",
            "sat_separation", "CORNER_SIGNS"]

@@ -76,7 +76,7 @@ from .constants import (
     GRAVITY,
     SIDE_CONTACT_MAX_NZ,
 )
-from .contacts import ContactSet, find_contacts
+from .contacts import ContactSet, cross, find_contacts
 from .errors import InputError
 from .model import Arrangement, box_corners, is_support_id
 
@@ -298,7 +298,7 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
         if not np.any(use):
             continue
         gu, du, pu = g[use], sign * dirs[use], p[use]
-        torque = np.cross(pu - bodies.com[gu], du)
+        torque = cross(pu - bodies.com[gu], du)
         blocks[use, side, :3] = du / W[gu][:, None]
         blocks[use, side, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
         col_row[use, side] = row_of_body[gu]
