@@ -25,6 +25,11 @@ are projected on the plane orthogonal to ``n`` and intersected with shapely
 an edge), the feature of A is grown by ``tol`` and the result collapsed to its centre.
 Interface vertices lie on the plane midway between the two features.
 
+*Incremental*: a pair's contact depends only on its two boxes, so
+:func:`update_contacts` derives the contacts of an arrangement from those of another
+that differs in a few boxes, recomputing only the pairs with a changed box; the
+result equals :func:`find_contacts` (same canonical order).
+
 Conventions: a contact is stored with ``a`` always a cuboid and ``b`` a cuboid or a
 support; the ``normal`` points from ``b`` into ``a`` (the direction in which ``b``
 pushes ``a``).  Node indices: cuboids are ``0..K-1``, supports ``K..K+S-1``.

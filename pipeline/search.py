@@ -22,7 +22,17 @@ relax fixed to touch keeping extensions, then shed volume; then single-edge move
 cheaper options), so the bound prunes hard from the start; groups of up to
 ``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  Independent groups
 (cuboids that no edge connects) are searched separately, stability results are cached per assignment, and contact
-geometry per set of extensions (type changes reuse it).  The search has a time budget
+geometry per set of extensions (type changes reuse it).
+
+Evaluating a node reuses the work of earlier nodes exactly: its contacts are updated
+from the closest recent geometry (only pairs with a box whose extensions differ are
+recomputed, :func:`pipeline.contacts.update_contacts`); the equilibrium is solved per
+independent component of free bodies, and a component whose sub-problem (matrix
+blocks and right-hand side, digested) was solved at an earlier node, or under another
+tilt, takes that solution from the group's cache (``check_stability(solve_cache=...)``),
+so a node that changes one edge re-solves only the components its boxes belong to.
+A node in which some box touches nothing is unstable without a solve (that box's body
+has no contact force to carry its weight).  The search has a time budget
 and always returns the best arrangement found; when even the root is unstable (a
 support was missed), the root is returned, marked unstable, with the boxes that move.
 """

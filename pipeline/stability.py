@@ -42,10 +42,14 @@ group of bodies (connected through free-free contacts).
 ``qp``: the same problem as a sparse convex QP in lifted form,
 :math:`\min \tfrac12\|r\|^2` s.t. :math:`\tilde D\lambda - r = \tilde b,\ \lambda \ge 0`,
 solved through its dual by Clarabel (interior point), group by group.
-``auto`` first tries a *load path* certificate (:func:`load_path`: loads carried from the
-top body down, one 6-row NNLS per body; an exact solution proves E = 0), then picks
-``nnls`` for groups with few unknowns and ``qp`` otherwise.  Tests check that the
-backends agree.
+``auto`` works per independent group: it first tries a *load path* certificate
+(:func:`load_path`: loads carried from the top body down, one 6-row NNLS per body; an
+exact solution proves E = 0), then a frictionless certificate, then picks ``nnls`` for
+groups with few unknowns and ``qp`` otherwise.  Tests check that the backends agree.
+A caller that checks many similar arrangements (the search) passes ``solve_cache``: a
+group whose sub-problem digest (its column blocks, their layout, body heights and
+right-hand side) was seen before reuses that solution, which is exactly what a new
+solve would return.  ``D`` itself is assembled lazily from the column blocks.
 
 The side-friction trap
 ----------------------
