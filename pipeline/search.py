@@ -543,7 +543,7 @@ def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
 
 
 #: bounded memo of :func:`finalize` (exact: digests of sub-problems, same-cuboid bases)
-FINALIZE_CACHE_MAX = 4096
+FINALIZE_CACHE_MAX = 512
 _FINALIZE_SOLVES: dict[bytes, tuple] = {}
 _FINALIZE_RECENT: list[tuple[Arrangement, ContactSet]] = []
 
