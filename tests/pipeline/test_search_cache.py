@@ -89,3 +89,62 @@ def test_solve_cache_gives_identical_results():
             assert r.energy == pytest.approx(plain.energy, abs=1e-12)
             np.testing.assert_allclose(r.contact_load, plain.contact_load, atol=1e-12)
     assert len(cache) > 0
+
+
+def test_floating_shortcut_agrees_with_the_full_check():
+    """Every assignment of the Figure 8 scene: quick verdicts equal full-check verdicts."""
+    import itertools
+
+    from pipeline.extend import candidate_edges
+    from pipeline.search import SearchStats, _Group
+
+    arr = Arrangement((box("A", (0, 0, 0.25), (1, 1, 0.5)),
+                       box("B", (0.1, 0, 0.85), (0.6, 0.6, 0.3))), (ground(),))
+    edges = candidate_edges(arr)
+    quick = _Group(arr, [0, 1], edges, 0.7, None, SearchStats())
+    full = _Group(arr, [0, 1], edges, 0.7, None, SearchStats())
+    floating = 0
+    for assignment in itertools.product(*(range(len(o)) for o in quick.options)):
+        q_ok, q_res = quick.evaluate(assignment)
+        f_ok, f_res = full.evaluate(assignment, quick=False)
+        assert q_ok == f_ok
+        if q_res == "floating":
+            floating += 1
+            assert f_res.energy >= 1.0  # a body with no contact carries its whole weight
+    assert floating > 0
+
+
+def test_prune_penetrating_matches_one_extension_at_a_time():
+    from pipeline.contacts import pair_tolerance, sat_separation
+    from pipeline.extend import MAX_EXTENSION_REL, pair_edges, prune_penetrating, support_edges
+
+    arr = _room(7)
+    arr = arr.with_(cuboids=tuple(c.with_(size=c.size * [1, 1, 0.8]) for c in arr.cuboids))
+    me = MAX_EXTENSION_REL * arr.scale_length()
+    edges = pair_edges(arr, me) + support_edges(arr, me)
+    kept, rejected = prune_penetrating(arr, edges)
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    K = len(C)
+
+    def penetrates(x) -> bool:  # the extension applied alone, against every other box
+        off = np.zeros((3, 2))
+        off[x.axis, x.side] = x.length
+        size = S[x.box] + off.sum(axis=1)
+        cen = C[x.box] + R[x.box] @ ((off[:, 1] - off[:, 0]) / 2.0)
+        others = np.array([k for k in range(K) if k != x.box])
+        n = len(others)
+        tol = pair_tolerance(np.broadcast_to(size, (n, 3)), S[others])
+        sep, _, _ = sat_separation(np.broadcast_to(cen, (n, 3)), np.broadcast_to(R[x.box], (n, 3, 3)),
+                                   np.broadcast_to(size / 2, (n, 3)), C[others], R[others],
+                                   S[others] / 2, tol)
+        return bool(np.any(sep < -tol))
+
+    expected = []
+    n_rejected = 0
+    for e in edges:
+        keep = [o for o in e.options if not any(penetrates(x) for x in o.extensions)]
+        n_rejected += len(e.options) - len(keep)
+        if any(o.type != "none" for o in keep):
+            expected.append((e.a, e.b, tuple(keep)))
+    assert n_rejected == rejected and n_rejected > 0
+    assert [(e.a, e.b, e.options) for e in kept] == expected
