@@ -7,7 +7,8 @@ goes through :func:`pipeline.imagine.imagine` with the scan's depth view:
 
 * every edge length is scaled by an independent factor uniform in [0.95, 1.05];
 * every cuboid is rotated about its centre by exactly the setting's angle about a
-  **random axis** (uniform on the sphere, not only yaw);
+  **random axis** (uniform on the sphere, not only yaw); outside ``--quick`` the same
+  settings are run again rotating about the **vertical** only (``yaw`` rows);
 * a perturbation under which two cuboids that did not intersect before intersect by more
   than :data:`OVERLAP_TOL` is discarded and drawn again (up to :data:`MAX_TRIES` times;
   the count of discarded draws is reported; when no clean draw is found, e.g. boxes
@@ -51,10 +52,18 @@ def _pairs_sep(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarray) ->
     return sep
 
 
-def random_rotations(rng: np.random.Generator, k: int, angle_deg: float) -> np.ndarray:
-    """(k, 3, 3) rotations by ``angle_deg`` about axes uniform on the sphere (Rodrigues)."""
-    axes = rng.normal(size=(k, 3))
-    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+def random_rotations(rng: np.random.Generator, k: int, angle_deg: float,
+                     axis: str = "random") -> np.ndarray:
+    """(k, 3, 3) rotations by ``angle_deg`` (Rodrigues) about axes uniform on the sphere
+    (``axis="random"``) or about the vertical with a random sign (``axis="yaw"``)."""
+    if axis == "yaw":
+        axes = np.zeros((k, 3))
+        axes[:, 2] = rng.choice([-1.0, 1.0], size=k)
+    elif axis == "random":
+        axes = rng.normal(size=(k, 3))
+        axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    else:
+        raise ValueError(f"axis: expected 'random' or 'yaw', got {axis!r}")
     K = np.zeros((k, 3, 3))
     K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
     K -= K.transpose(0, 2, 1)
@@ -63,7 +72,8 @@ def random_rotations(rng: np.random.Generator, k: int, angle_deg: float) -> np.n
 
 
 def perturb(arr, rng: np.random.Generator, angle_deg: float,
-            size_rel: float = SIZE_PERTURBATION) -> tuple[object, int, bool]:
+            size_rel: float = SIZE_PERTURBATION, axis: str = "random"
+            ) -> tuple[object, int, bool]:
     """Perturb every cuboid of ``arr`` (module docstring).
 
     Returns
@@ -80,7 +90,7 @@ def perturb(arr, rng: np.random.Generator, angle_deg: float,
     best, best_overlap = None, np.inf
     for tries in range(MAX_TRIES):
         sizes = s0 * rng.uniform(1 - size_rel, 1 + size_rel, size=(k, 3))
-        rots = random_rotations(rng, k, angle_deg) @ R0
+        rots = random_rotations(rng, k, angle_deg, axis) @ R0
         sep = _pairs_sep(c0, rots, sizes)
         overlap = float(np.sum(np.clip(-sep[before] - OVERLAP_TOL, 0.0, None)))
         if overlap < best_overlap:
@@ -97,7 +107,7 @@ def _with(arr, rots: np.ndarray, sizes: np.ndarray):
 
 
 def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
-                 runs: int) -> dict:
+                 runs: int, axis: str = "random") -> dict:
     """``runs`` perturbations of one scene's initial cuboids at ``angle`` degrees."""
     from eval.suites._common import score_record
     from eval.suites._scenes import initial_from_dir, make_scene, scratch
@@ -109,14 +119,15 @@ def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
         scan, initial, args = initial_from_dir(made.path)
     out_runs, discarded, forced = [], 0, 0
     for _ in range(runs):
-        arr, d, f = perturb(initial, rng, angle)
+        arr, d, f = perturb(initial, rng, angle, axis=axis)
         discarded += d
         forced += int(f)
         res = imagine(arr, views_from_scan(scan, arr), budget=args.budget, mu=args.mu)
         rec = score_record(res.arrangement, gt, initial=arr)
         out_runs.append({k: rec[k] for k in ("initial", "optimized", "mean_iou") if k in rec}
                         | {"stable": bool(res.report["stable"])})
-    return {"family": family, "seed": int(seed), "angle": float(angle), "runs": out_runs,
+    return {"family": family, "seed": int(seed), "angle": float(angle), "axis": axis,
+            "runs": out_runs,
             "discarded": int(discarded), "forced": forced, "n_initial": len(initial.cuboids),
             "n_gt": len(gt.cuboids)}
 
@@ -142,41 +153,50 @@ def run(args: argparse.Namespace) -> int:
     tasks = [Task(f"{fam}-{seed}-rot{a:02d}", perturb_task,
                   {"family": fam, "seed": seed, "angle": a, "runs": runs})
              for fam in fams for a in angles]
+    if not quick:  # the same about the vertical only (0 degrees is the same either way)
+        tasks += [Task(f"{fam}-{seed}-yaw{a:02d}", perturb_task,
+                       {"family": fam, "seed": seed, "angle": a, "runs": runs, "axis": "yaw"})
+                  for fam in fams for a in angles if a > 0]
     summary = run_suite_tasks(args, tasks, "perturb")
     results = summary.results
     rows, series = [], {}
-    for fam in fams:
-        xs, ys = [], []
-        for a in angles:
-            rec = results.get(f"{fam}-{seed}-rot{a:02d}")
-            if rec is None:
-                continue
-            ri = [f1_of(r, "initial.typed") for r in rec["runs"]]
-            ro = [f1_of(r, "optimized.typed") for r in rec["runs"]]
-            micro = aggregate_prf(rec["runs"], "optimized.typed")
-            rows.append([fam, seed, a, len(rec["runs"]), 100 * float(np.mean(ri)),
-                         100 * float(np.mean(ro)), 100 * float(np.min(ro)),
-                         100 * micro["f1"], 100 * float(np.mean([r["stable"] for r in rec["runs"]])),
-                         rec["discarded"], rec["forced"]])
-            xs.append(a)
-            ys.append(100 * float(np.mean(ro)))
-        series[f"{fam} {seed}"] = (xs, ys)
+    for axis, prefix in (("random", "rot"),) if quick else (("random", "rot"), ("yaw", "yaw")):
+        for fam in fams:
+            xs, ys = [], []
+            for a in angles:
+                rec = results.get(f"{fam}-{seed}-{prefix}{a:02d}")
+                if rec is None and a == 0:
+                    rec = results.get(f"{fam}-{seed}-rot00")
+                if rec is None:
+                    continue
+                ri = [f1_of(r, "initial.typed") for r in rec["runs"]]
+                ro = [f1_of(r, "optimized.typed") for r in rec["runs"]]
+                micro = aggregate_prf(rec["runs"], "optimized.typed")
+                rows.append([fam, seed, axis, a, len(rec["runs"]), 100 * float(np.mean(ri)),
+                             100 * float(np.mean(ro)), 100 * float(np.min(ro)),
+                             100 * micro["f1"],
+                             100 * float(np.mean([r["stable"] for r in rec["runs"]])),
+                             rec["discarded"], rec["forced"]])
+                xs.append(a)
+                ys.append(100 * float(np.mean(ro)))
+            if len(xs) > 1:
+                series[f"{fam} {seed} ({axis} axis)"] = (xs, ys)
     for name, by_angle in PAPER_TABLE2.items():
         for a in angles:
             if a in by_angle:
                 i, o = by_angle[a]
-                rows.append([f"paper: {name}", "-", a, "-", i, o, float("nan"), float("nan"),
+                rows.append([f"paper: {name}", "-", "?", a, "-", i, o, float("nan"), float("nan"),
                              float("nan"), "-", "-"])
         series[f"paper {name}"] = ([a for a in angles if a in by_angle],
                                    [by_angle[a][1] for a in angles if a in by_angle])
     note = (f"Each run: every edge scaled by U[{1 - SIZE_PERTURBATION:.2f}, "
             f"{1 + SIZE_PERTURBATION:.2f}], every cuboid rotated about its centre by the angle "
-            "about a random axis (uniform on the sphere); draws making two cuboids intersect "
+            "about a random axis (uniform on the sphere; 'yaw' rows: about the vertical); draws making two cuboids intersect "
             f"(> {OVERLAP_TOL * 1000:g} mm) are discarded ('discarded' counts them; 'forced': runs "
             f"with no clean draw in {MAX_TRIES}, where the least-overlapping draw was used).  F1: typed "
             "contact graph, percent, mean over runs (min, and micro over all runs' edges).  "
             f"{summary.n_ok} settings ok, {summary.n_failed} failed.\n" + failure_note(summary))
-    md = write_table(out, "perturb", ["family", "scene seed", "rotation (deg)", "runs",
+    md = write_table(out, "perturb", ["family", "scene seed", "axis", "rotation (deg)", "runs",
                                       "initial F1", "optimized F1", "min optimized F1",
                                       "micro optimized F1", "stable %", "discarded", "forced"],
                      rows,

@@ -97,6 +97,18 @@ def test_perturb_definition(angle: float) -> None:
         assert all(c.observed is None for c in p.cuboids) and p.contacts == ()
 
 
+def test_perturb_yaw_keeps_the_vertical() -> None:
+    from eval.suites import perturb
+
+    arr = _two_boxes(gap=0.06)
+    p, _, forced = perturb.perturb(arr, np.random.default_rng(3), 10.0, axis="yaw")
+    assert not forced
+    dR = p.rotations @ arr.rotations.transpose(0, 2, 1)
+    np.testing.assert_allclose(dR[:, :, 2], np.broadcast_to([0.0, 0.0, 1.0], (2, 3)), atol=1e-12)
+    np.testing.assert_allclose(np.abs(np.arctan2(dR[:, 1, 0], dR[:, 0, 0])), np.deg2rad(10.0),
+                               atol=1e-12)
+
+
 def test_perturb_face_to_face_is_forced_but_least_overlapping() -> None:
     from eval.suites import perturb
 
@@ -123,8 +135,8 @@ def test_perturb_quick(tmp_path: Path) -> None:
     assert _eval("perturb", tmp_path, "--quick", "--n", "1") == 0
     rows = _rows(tmp_path / "perturb.csv")
     ours = [r for r in rows if not r["family"].startswith("paper")]
-    assert [(r["family"], r["rotation (deg)"], r["runs"]) for r in ours] == [
-        ("chair", "0", "1"), ("chair", "15", "1")]
+    assert [(r["family"], r["axis"], r["rotation (deg)"], r["runs"]) for r in ours] == [
+        ("chair", "random", "0", "1"), ("chair", "random", "15", "1")]
     assert {r["family"] for r in rows} >= {"paper: chair_01", "paper: chair_02"}
     assert (tmp_path / "perturb.png").stat().st_size > 0
     for r in ours:
