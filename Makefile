@@ -35,6 +35,7 @@ sysdeps:
 
 test: install
 	$(PY) -m pytest -q
+	$(VENV)/bin/unseen eval regression --out $(VENV)/regression_out
 
 
 test-slow: install

@@ -221,6 +221,22 @@ def _features(corners: np.ndarray, direction: np.ndarray, tol: np.ndarray, extre
     return h <= h.min(axis=1, keepdims=True) + tol[:, None]
 
 
+def _clean(geoms: np.ndarray) -> np.ndarray:
+    """Drop repeated vertices; a sliver that collapses doing so becomes its centroid."""
+    import shapely
+
+    try:
+        return shapely.normalize(shapely.remove_repeated_points(geoms, tolerance=1e-12))
+    except shapely.errors.GEOSException:
+        out = np.empty(len(geoms), dtype=object)
+        for k, g in enumerate(geoms):
+            try:
+                out[k] = shapely.normalize(shapely.remove_repeated_points(g, tolerance=1e-12))
+            except shapely.errors.GEOSException:  # a polygon thinner than float noise
+                out[k] = shapely.centroid(g)
+        return out
+
+
 def _interfaces(corners_a: np.ndarray, mask_a: np.ndarray, corners_b: np.ndarray | None,
                 mask_b: np.ndarray | None, normal: np.ndarray, tol: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -265,7 +281,7 @@ def _interfaces(corners_a: np.ndarray, mask_a: np.ndarray, corners_b: np.ndarray
         short = (shapely.get_type_id(inter) == 1) & (shapely.length(inter) < tol)
         if np.any(short):
             inter[short] = shapely.centroid(inter[short])
-    inter = shapely.normalize(shapely.remove_repeated_points(inter, tolerance=1e-12))
+    inter = _clean(inter)
     coords, idx = shapely.get_coordinates(inter, return_index=True)
     # polygons repeat their first vertex at the end: drop it
     types = shapely.get_type_id(inter)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 #: the scene families (same order as ``synth_scenes.registry.FAMILIES``; a test checks it)
 KINDS = ("stack", "counterweight", "bridge", "table", "chair", "shelf", "wall_shelf", "desk",
-         "sofa", "room")
+         "sofa", "room", "demo")
 
 EPILOG = """families:
   stack          --n-boxes N boxes (default 3-10): tower, staggered pier, pyramid or piles

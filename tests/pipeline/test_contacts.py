@@ -98,3 +98,14 @@ def test_brick_wall_contact_count_matches_its_construction():
     assert side == 3 * (per - 1) + 2 * per
     # every pair of consecutive courses shares 2 * per bearing interfaces
     assert stacked == (courses - 1) * 2 * per
+
+
+def test_sliver_interfaces_collapse_to_a_point_instead_of_failing():
+    import shapely
+
+    from pipeline.contacts import _clean
+
+    sliver = shapely.Polygon([(0, 0), (1e-13, 0), (1e-13, 1e-13), (0, 1e-13)])
+    out = _clean(np.array([sliver, shapely.box(0, 0, 1, 1)], dtype=object))
+    assert out[0].geom_type == "Point"
+    assert out[1].equals(shapely.box(0, 0, 1, 1))
