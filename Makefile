@@ -35,7 +35,7 @@ sysdeps:
 
 test: install
 	$(PY) -m pytest -q
-	$(VENV)/bin/unseen eval regression --out $(VENV)/regression_out
+	out=$$(mktemp -d) && $(VENV)/bin/unseen eval regression --out $$out
 
 
 test-slow: install
