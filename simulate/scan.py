@@ -298,65 +298,10 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None, np
     colors : (n, 3) uint8 or None
     instance : (n,) uint16 or None
     """
+    from pipeline.scan_io import read_ply as read_ply_columns
+
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read point cloud ({exc.strerror or exc})") from None
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise InputError(f"{path}: not a PLY file (no 'ply' magic or no end_header)")
-    body_start = data.index(b"\n", end) + 1
-    lines = data[:end].decode("ascii", "replace").splitlines()
-    fmt = None
-    elements: list[tuple[str, int, list[tuple[str, str]]]] = []
-    types: dict[str, str] = {}
-    for line in lines:
-        tok = line.split()
-        if not tok:
-            continue
-        if tok[0] == "format":
-            fmt = tok[1]
-        elif tok[0] == "element":
-            elements.append((tok[1], int(tok[2]), []))
-        elif tok[0] == "property" and elements:
-            if tok[1] == "list":
-                elements[-1][2].append(("list", tok[-1]))
-            else:
-                if tok[1] not in _PLY_TYPES:
-                    raise InputError(f"{path}: unknown PLY property type {tok[1]!r}")
-                elements[-1][2].append((_PLY_TYPES[tok[1]], tok[2]))
-                if elements[-1][0] == "vertex":
-                    types[tok[2]] = _PLY_TYPES[tok[1]]
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise InputError(f"{path}: unsupported PLY format {fmt!r}")
-    names = [e[0] for e in elements]
-    if "vertex" not in names:
-        raise InputError(f"{path}: PLY has no vertex element")
-    vi = names.index("vertex")
-    _, n, props = elements[vi]
-    if any(t == "list" for t, _ in props):
-        raise InputError(f"{path}: PLY vertex element with list properties is not supported")
-    if fmt == "ascii":
-        skip = sum(e[1] for e in elements[:vi])
-        text = data[body_start:].decode("ascii", "replace").splitlines()[skip:skip + n]
-        if len(text) < n:
-            raise InputError(f"{path}: PLY ends after {len(text)} of {n} vertices")
-        table = np.array(" ".join(text).split(), dtype=float).reshape(n, -1)
-        cols = {name: table[:, i] for i, (_, name) in enumerate(props)}
-    else:
-        order = "<" if fmt == "binary_little_endian" else ">"
-        offset = body_start
-        for _, count, eprops in elements[:vi]:
-            if any(t == "list" for t, _ in eprops):
-                raise InputError(f"{path}: PLY element before the vertices has list "
-                                 "properties; cannot locate the vertices")
-            offset += count * sum(np.dtype(t).itemsize for t, _ in eprops)
-        dt = np.dtype([(name, order + t) for t, name in props])
-        if len(data) < offset + n * dt.itemsize:
-            raise InputError(f"{path}: PLY is truncated ({n} vertices announced)")
-        rec = np.frombuffer(data, dtype=dt, count=n, offset=offset)
-        cols = {name: rec[name].astype(float) for _, name in props}
+    cols = read_ply_columns(path)  # the one PLY parser (ascii / binary, any endianness)
     if not all(k in cols for k in "xyz"):
         raise InputError(f"{path}: PLY vertices need x, y and z properties")
     points = np.stack([cols["x"], cols["y"], cols["z"]], axis=1)
@@ -365,7 +310,7 @@ def read_ply(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray | None, np
                        ("diffuse_red", "diffuse_green", "diffuse_blue")):
         if r_ in cols and g_ in cols and b_ in cols:
             c = np.stack([cols[r_], cols[g_], cols[b_]], axis=1)
-            if types.get(r_, "u1").startswith("f") and c.size and c.max() <= 1.0:
+            if c.size and c.max() <= 1.0 and np.any(c != np.rint(c)):  # float colours in [0, 1]
                 c = c * 255.0
             colors = np.clip(np.rint(c), 0, 255).astype(np.uint8)
             break
