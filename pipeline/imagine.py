@@ -146,9 +146,7 @@ def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float =
     interpenetrates.  Returns (arrangement, joins made).
     """
     from .search import finalize
-    from .stability import check_stability
 
-    idx = final.index
     joins = 0
     for obj in sorted({c.object for c in final.cuboids if c.object is not None}):
         members = [c.id for c in final.cuboids if c.object == obj]
@@ -181,14 +179,12 @@ def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float =
                     cand = finalize(trial, fixed, mu=mu, threshold=threshold)
                 except InputError:  # they do not touch after all
                     continue
-                if cand.stability is not None and cand.stability.stable and \
-                        check_stability(cand, mu=mu, threshold=threshold).stable:
+                if cand.stability is not None and cand.stability.stable:
                     final, joined = cand, True
                     joins += 1
                     break
             if not joined:
                 break
-    del idx
     return final, joins
 
 
