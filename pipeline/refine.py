@@ -48,9 +48,9 @@ def _with_params(arr: Arrangement, k: int, center: np.ndarray, size: np.ndarray)
     return arr.with_(cuboids=tuple(cubs))
 
 
-def _energy(arr: Arrangement, mu: float) -> tuple[float, object]:
+def _energy(arr: Arrangement, mu: float, tilt_deg: float = 0.0) -> tuple[float, object]:
     try:
-        res = check_stability(arr, mu=mu)
+        res = check_stability(arr, mu=mu, tilt_deg=tilt_deg)
     except InputError:  # a fixed pair pulled apart
         return float("inf"), None
     if res.status != "ok":
@@ -109,19 +109,31 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
     return None if x is None else np.asarray(x)
 
 
-def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float = 1e-5
-           ) -> RefineResult:
-    """Lower the stability energy of ``arr`` keeping its contacts (see module docstring)."""
-    E0, res = _energy(arr, mu)
+def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float = 1e-5,
+           tilt_deg: float = 0.0, deadline: float | None = None) -> RefineResult:
+    """Lower the stability energy of ``arr`` keeping its contacts (see module docstring).
+
+    With ``tilt_deg`` > 0 the energy is that of the first tilt of gravity by that angle
+    under which the arrangement fails (``check_stability(tilt_deg=...)``): the result then
+    stands with a margin.  ``deadline`` (a ``time.perf_counter()`` value) stops the steps
+    early; the best arrangement so far is returned.
+    """
+    import time
+
+    E0, res = _energy(arr, mu, tilt_deg)
     evals = 1
     E = E0
     steps = 0
     scale = arr.scale_length()
     h_fd = 1e-3 * scale
     while steps < max_steps and np.isfinite(E) and E > threshold / 100:
+        if deadline is not None and time.perf_counter() > deadline:
+            break
         hot = [k for k, b in enumerate(res.bodies) if b.energy > 0]
         best = None
         for k in hot:
+            if best is not None and deadline is not None and time.perf_counter() > deadline:
+                break
             c = arr.cuboids[k]
             x0 = np.concatenate([c.center, c.size])
             grad = np.zeros(6)
@@ -129,7 +141,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
                 for sgn in (1, -1):
                     x = x0.copy()
                     x[p] += sgn * h_fd
-                    e, _ = _energy(_with_params(arr, k, x[:3], x[3:]), mu)
+                    e, _ = _energy(_with_params(arr, k, x[:3], x[3:]), mu, tilt_deg)
                     evals += 1
                     grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
             if best is None or np.linalg.norm(grad) > np.linalg.norm(best[1]):
@@ -146,7 +158,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
             if delta is None:
                 break
             trial = _with_params(arr, k, c.center + delta[:3], c.size + delta[3:])
-            e, r = _energy(trial, mu)
+            e, r = _energy(trial, mu, tilt_deg)
             evals += 1
             if e < E:
                 arr, E, res, improved = trial, e, r, True
