@@ -9,8 +9,9 @@ One job: say how close a predicted arrangement is to the truth.
   oriented boxes with Hungarian assignment (:func:`scipy.optimize.linear_sum_assignment`).
   Supports are nodes too: ``ground`` maps to ``ground``, walls map by normal and offset.
 * **Contact graph.**  Precision, recall and F1 over typed edges (same pair, same type)
-  and untyped edges (same pair).  The *initial* graph is every touching pair among the
-  initial cuboids, all labelled ``touch`` (:func:`initial_graph`).
+  and untyped edges (same pair).  The *initial* graph is every pair of initial cuboids
+  (or cuboid and support) within 2 cm of each other, all labelled ``touch``
+  (:func:`initial_graph`).
 * **Size error.**  The paper's equations 5-6: per side ``e_i = |s_i - s_i^GT| / s_i^GT``;
   changes between the initial and optimized boxes larger than ``eps = 5 %`` are averaged,
   weighted by the true side length.
@@ -39,6 +40,10 @@ MIN_MATCH_IOU = 0.05
 
 #: The paper's noise threshold on a change of relative side error (equation 5).
 SIZE_EPS = 0.05
+
+#: Gap (metres) within which two initial cuboids count as touching in the initial graph:
+#: about three standard deviations of Kinect depth noise at 2 m (Nguyen et al.).
+INITIAL_GRAPH_GAP = 0.02
 
 #: Support matching: largest angle between wall normals (degrees) and plane offset (m).
 WALL_MAX_ANGLE_DEG = 20.0
@@ -366,9 +371,25 @@ def contact_graph(arr: Arrangement, source: GraphSource = "union") -> frozenset[
     return listed | frozenset(e for e in geometric_graph(arr) if (e[0], e[1]) not in listed_pairs)
 
 
-def initial_graph(arr: Arrangement) -> frozenset[Edge]:
-    """The paper's initial graph: every touching pair among ``arr``'s cuboids, all ``touch``."""
-    return frozenset(_edge(a, b, "touch") for a, b in _touching_pairs(arr))
+def initial_graph(arr: Arrangement, gap: float = INITIAL_GRAPH_GAP) -> frozenset[Edge]:
+    """The paper's initial graph: every pair among ``arr``'s cuboids (and supports) that
+    touch, overlap or come within ``gap`` metres of each other, all ``touch``.
+
+    Boxes fitted to noisy, partial points never quite touch, so the contacts of the
+    initial cuboids are taken with the sensor's tolerance: every box grows by ``gap``
+    (half on each side) and every support plane moves ``gap / 2`` towards the boxes.
+    """
+    from dataclasses import replace
+
+    grown = arr.with_(cuboids=tuple(c.with_(size=c.size + gap) for c in arr.cuboids),
+                      supports=tuple(replace(s, point=np.asarray(s.point) + 0.5 * gap *
+                                             np.asarray(s.normal)) for s in arr.supports),
+                      contacts=(), stability=None)
+    from pipeline.contacts import find_contacts
+
+    cs = find_contacts(grown, rel_tol=0.0)  # the gap is the tolerance
+    pairs = {tuple(p) for p in cs.pairs} | {(a, b) for a, b, _ in cs.penetrations}
+    return frozenset(_edge(a, b, "touch") for a, b in pairs)
 
 
 def initial_arrangement(arr: Arrangement) -> Arrangement:

@@ -62,6 +62,91 @@ def ground_rotation(points: np.ndarray) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def estimate_normals(points: np.ndarray, radius: float, max_nn: int = 30) -> np.ndarray:
+    """Unit normals ``(n, 3)`` of ``points (n, 3)`` by local PCA (Open3D), unoriented."""
+    import open3d as o3d
+
+    if len(points) < 3:
+        return np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=float)))
+    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=float(radius), max_nn=max_nn))
+    return np.asarray(pcd.normals)
+
+
+def normal_yaw(normals: np.ndarray, min_count: int = 30,
+               min_fraction: float = 0.1, min_coherence: float = 0.4) -> float | None:
+    """Yaw (radians, in [0, pi/2)) of an upright box from the normals of its vertical faces.
+
+    Normals with a clear horizontal part vote for their direction modulo 90 degrees
+    (the mean of ``exp(4 i phi)`` weighted by the squared horizontal length), which
+    stays right when only one or two faces were seen, where a minimum-area rectangle of
+    a partial, noisy outline tilts.  None when too few normals are horizontal or their
+    directions disagree (a round object): use :func:`ground_rotation`.
+    """
+    h = np.asarray(normals)[:, :2]
+    w = np.einsum("ij,ij->i", h, h)
+    keep = w > 0.75  # within 30 degrees of horizontal
+    if keep.sum() < max(min_count, min_fraction * len(h)):
+        return None
+    phi = np.arctan2(h[keep, 1], h[keep, 0])
+    z = np.sum(w[keep] * np.exp(4j * phi)) / np.sum(w[keep])
+    if abs(z) < min_coherence:
+        return None
+    return float((np.angle(z) / 4.0) % (np.pi / 2))
+
+
+def yaw_rotation(a: float) -> np.ndarray:
+    """(3, 3) rotation about z by ``a`` radians."""
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None) -> np.ndarray:
+    """The frame of an upright object: yaw from vertical-face normals when they agree
+    (:func:`normal_yaw`), else the minimum-area rectangle (:func:`ground_rotation`)."""
+    a = normal_yaw(normals) if normals is not None and len(normals) else None
+    return ground_rotation(points) if a is None else yaw_rotation(a)
+
+
+def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
+                 min_face: int = 15, trim: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Box extents (lo (3,), hi (3,)) in the box frame from noisy surface points.
+
+    A face that was seen is placed at the median of its own points (points whose normal
+    is within ``acos(face_cos)`` of its axis, in the half of the box nearer that face):
+    depth noise scatters a face on both sides of it, so its extreme points overshoot by
+    two to three standard deviations.  A face not seen gets the ``trim`` / ``100 - trim``
+    percentile of all points (the edges of the faces that were seen).
+    """
+    lo = np.percentile(local, trim, axis=0)
+    hi = np.percentile(local, 100.0 - trim, axis=0)
+    mid = (lo + hi) / 2
+    for a in range(3):
+        on = np.abs(local_normals[:, a]) >= face_cos
+        x = local[on, a]
+        need = max(min_face, int(0.03 * len(local)))
+        low, high = x[x < mid[a]], x[x >= mid[a]]
+        if len(low) >= need:
+            lo[a] = float(np.median(low))
+        if len(high) >= need:
+            hi[a] = float(np.median(high))
+        if hi[a] < lo[a]:
+            lo[a] = hi[a] = float(np.median(local[:, a]))
+    return lo, hi
+
+
+def fit_part(points: np.ndarray, normals: np.ndarray, cell: float, rotation: np.ndarray,
+             min_points: int = 20) -> list[FittedBox]:
+    """One cuboid for the points of one part (a segmentation that names parts), in the
+    frame ``rotation``, its faces placed by :func:`face_extents`."""
+    if len(points) < min_points:
+        return []
+    local = points @ rotation
+    lo, hi = face_extents(local, normals @ rotation)
+    size = np.maximum(hi - lo, 0.5 * cell)
+    return [FittedBox(rotation @ ((lo + hi) / 2), rotation.copy(), size, len(points))]
+
+
 def _sat(occ: np.ndarray) -> np.ndarray:
     """3D summed-area table with a zero border: S[i,j,k] = occ[:i,:j,:k].sum()."""
     S = np.zeros(tuple(np.array(occ.shape) + 1), dtype=np.int64)
@@ -329,8 +414,19 @@ def slant_frame(normals: list[np.ndarray]) -> np.ndarray | None:
 
 def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
                solid: Callable[[np.ndarray], np.ndarray] | None = None,
-               plane_threshold: float | None = None, min_points: int = 20) -> list[FittedBox]:
-    """Cuboids for one object: one slanted box, or ground-aligned slabs."""
+               plane_threshold: float | None = None, min_points: int = 20,
+               normals: np.ndarray | None = None, rotation: np.ndarray | None = None,
+               single: bool = False) -> list[FittedBox]:
+    """Cuboids for one object: one slanted box, or ground-aligned boxes.
+
+    Parameters
+    ----------
+    normals : (n, 3) unit normals of ``points`` (:func:`estimate_normals`); they orient
+        a single part (:func:`upright_rotation`) and place seen faces (:func:`face_extents`).
+    rotation : the upright frame to use (e.g. shared by the parts of one object).
+    single : the points are one part (the segmentation names parts): one box
+        (:func:`fit_part`) instead of the slab cover of :func:`fit_upright`.
+    """
     if len(points) < min_points:
         return []
     from .segment import point_spacing
@@ -341,10 +437,18 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     R = slant_frame(dominant_planes(points, thr, rng))
     if R is not None:
         local = points @ R
-        lo, hi = np.percentile(local, [0.5, 99.5], axis=0)
+        if normals is not None:
+            lo, hi = face_extents(local, normals @ R, trim=0.5)
+        else:
+            lo, hi = np.percentile(local, [0.5, 99.5], axis=0)
         size = np.maximum(hi - lo, cell)
         return [FittedBox(R @ ((lo + hi) / 2), R, size, len(points), slanted=True)]
-    return fit_upright(points, cell, solid=solid, min_points=min_points)
+    if single and normals is not None:
+        if rotation is None:
+            rotation = upright_rotation(points, normals)
+        return fit_part(points, normals, cell, rotation, min_points)
+    # an object of several parts: its outline's rectangle orients the slab cover
+    return fit_upright(points, cell, solid=solid, min_points=min_points, rotation=rotation)
 
 
 def box_iou(c1: np.ndarray, R1: np.ndarray, s1: np.ndarray, c2: np.ndarray, R2: np.ndarray,

@@ -11,7 +11,9 @@
 3. *candidates* (:mod:`pipeline.extend`) with interpenetration and visibility pruning;
 4. *search* (:mod:`pipeline.search`): fewest fixed contacts, then least added volume;
    then parts of one object that were left apart are joined where an extension can
-   (:func:`connect_objects`: an object is one connected rigid body);
+   (:func:`connect_objects`: an object is one connected rigid body), and glue joints
+   between different objects are dropped where refining the boxes makes them stand
+   without (:func:`relax_fixed`);
 5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
@@ -45,7 +47,8 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     """Remove overlaps between initial boxes (they cannot be contacts).
 
     Two overlapping boxes of the same object with the same axes are one part seen as
-    two slabs: they merge into the box that bounds both.  Otherwise both boxes give
+    two slabs: they merge into the box that bounds both (unless the segmentation named
+    them as different parts, ``extra["instance"]``: a shelf's board and its side stay two).  Otherwise both boxes give
     way by half the overlap along the axis that separates them best (each keeps at
     least half of its extent there).  A box reaching below a support plane loses the
     part below it.
@@ -68,7 +71,8 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
             ci, cj = cubs[i], cubs[j]
             if ci is None or cj is None:
                 continue
-            if ci.object is not None and ci.object == cj.object and _same_axes(ci, cj):
+            if (ci.object is not None and ci.object == cj.object and _same_axes(ci, cj)
+                    and _same_part(ci, cj)):
                 cubs[i], cubs[j] = _merge(ci, cj), None
             else:
                 cubs[i] = _shrink_against(ci, cj, share=0.5)
@@ -76,6 +80,12 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
             repaired += 1
         arr = arr.with_(cuboids=tuple(c for c in cubs if c is not None))
     return arr, repaired
+
+
+def _same_part(a: Cuboid, b: Cuboid) -> bool:
+    """False when the segmentation gave the two boxes different part ids."""
+    ia, ib = a.extra.get("instance"), b.extra.get("instance")
+    return ia is None or ib is None or ia == ib
 
 
 def _same_axes(a: Cuboid, b: Cuboid, cos_tol: float = np.cos(np.radians(5))) -> bool:
@@ -188,6 +198,86 @@ def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float =
     return final, joins
 
 
+def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
+                tilt_deg: float | None = None, deadline: float = float("inf"),
+                max_steps: int = 8, max_group: int = 16) -> tuple[Arrangement, int, int]:
+    """Turn ``fixed`` contacts between different objects into ``touch`` where refinement
+    makes the arrangement stand without them.
+
+    The search judges the boxes as fitted; noisy, partly seen boxes put a centre of mass
+    a little off (a stacked box seen from the front looks shallower than it is, so it
+    seems to hang over its support's front edge), and the search pays with a glue joint
+    the scene does not have.  For each such joint (in contact order) the joint becomes a
+    ``touch``, the boxes of its connected group are refined (:func:`pipeline.refine.refine`
+    with gravity tilted by ``tilt_deg``, so the result has a margin), and the change is
+    kept when the group then stands robustly and nothing interpenetrates.  Joints within
+    one object (a table's legs) are left: they are what holds an object together.  Each
+    trial refines at most ``max_steps`` steps and only groups of up to ``max_group``
+    cuboids (so the outcome does not depend on the machine's speed); no trial starts
+    after ``deadline``.
+
+    Returns (arrangement, joints tried, joints relaxed); the stability summary is left
+    for the caller to recompute.
+    """
+    from dataclasses import replace
+
+    from .search import ROBUST_TILT_DEG
+    from .stability import check_stability
+
+    tilt = ROBUST_TILT_DEG if tilt_deg is None else tilt_deg
+    objects = {c.id: c.object for c in final.cuboids}
+    tried = relaxed = 0
+    for i in range(len(final.contacts)):
+        c = final.contacts[i]
+        if c.type != "fixed" or c.a not in objects:
+            continue
+        if c.b in objects and objects[c.a] is not None and objects[c.a] == objects[c.b]:
+            continue
+        if time.perf_counter() > deadline:
+            break
+        tried += 1
+        contacts = tuple(replace(x, type="touch") if j == i else x
+                         for j, x in enumerate(final.contacts))
+        trial = final.with_(contacts=contacts, stability=None)
+        group = _touching_group(trial, c.a)
+        if len(group) > max_group:
+            continue
+        sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
+                          contacts=tuple(x for x in contacts
+                                         if x.a in group and (x.b in group or x.b not in objects)))
+        try:
+            refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt).arrangement
+            if not check_stability(refined, mu=mu, threshold=threshold, tilt_deg=tilt).stable:
+                continue
+        except InputError:  # a fixed pair pulled apart
+            continue
+        moved = {x.id: x for x in refined.cuboids}
+        merged = trial.with_(cuboids=tuple(moved.get(x.id, x) for x in trial.cuboids))
+        if find_contacts(merged).penetrations:
+            continue
+        final = merged
+        relaxed += 1
+    return final, tried, relaxed
+
+
+def _touching_group(arr: Arrangement, start: str) -> set[str]:
+    """Ids of the cuboids connected to ``start`` through touching cuboids (supports do
+    not connect: what stands on the floor apart from each other is independent)."""
+    cs = find_contacts(arr)
+    nbrs: dict[str, set[str]] = {}
+    for a, b in cs.pairs:
+        nbrs.setdefault(a, set()).add(b)
+        nbrs.setdefault(b, set()).add(a)
+    cuboid_ids = set(arr.ids)
+    seen, todo = {start}, [start]
+    while todo:
+        for n in nbrs.get(todo.pop(), ()):
+            if n in cuboid_ids and n not in seen:
+                seen.add(n)
+                todo.append(n)
+    return seen
+
+
 def _components_of(members: list[str], contacts) -> dict[str, int]:
     parent = {m: m for m in members}
 
@@ -222,13 +312,17 @@ def _push_face(arr: Arrangement, initial: Arrangement, x) -> Arrangement:
 
 
 def views_from_scan(scan, arr: Arrangement) -> list[DepthView]:
-    """The depth image(s) of a loaded scan in the arrangement's world frame."""
-    if scan is None or getattr(scan, "depth", None) is None or scan.intrinsics is None:
-        return []
+    """The depth image(s) of a loaded scan in the arrangement's world frame (every frame
+    of a fused multi-view scan)."""
     pose = arr.meta.get("camera_pose")
-    if pose is None:
+    if scan is None or pose is None:
         return []
-    return [DepthView(np.asarray(scan.depth, float), scan.intrinsics, np.asarray(pose, float))]
+    T = np.asarray(pose, float)  # input frame -> world
+    frames = [(f, T @ np.asarray(f.T_world_cam, float)) for f in getattr(scan, "views", ())]
+    if not frames:
+        frames = [(scan, T)]
+    return [DepthView(np.asarray(f.depth, float), f.intrinsics, P) for f, P in frames
+            if getattr(f, "depth", None) is not None and f.intrinsics is not None]
 
 
 def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: float = 10.0,
@@ -237,7 +331,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     """Extend the initial cuboids of ``arr`` into a stable arrangement (module docstring)."""
     views = views or []
     timings: dict[str, float] = {}
-    t = time.perf_counter()
+    t0 = t = time.perf_counter()
     arr = arr.with_(contacts=(), stability=None)
     # keep the observed box of every cuboid (before any change)
     arr = arr.with_(cuboids=tuple(
@@ -271,6 +365,16 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     timings["connect"] = time.perf_counter() - t
 
     t = time.perf_counter()
+    final, relax_tried, relaxed = relax_fixed(final, mu=mu, threshold=threshold,
+                                              deadline=t0 + 1.5 * budget)
+    if relaxed:
+        from .search import finalize
+
+        final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
+                         threshold=threshold)
+    timings["relax"] = time.perf_counter() - t
+
+    t = time.perf_counter()
     refined = None
     if final.stability is not None and final.stability.energy > (threshold or 1e-5) / 100:
         refined = refine(final, mu=mu, max_steps=refine_steps)
@@ -299,6 +403,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "search": result.stats.to_json(),
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
+        "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "added_volume_m3": result.added_volume,
         "refine": None if refined is None else {
             "energy_before": refined.energy_before, "energy_after": refined.energy_after,

@@ -14,7 +14,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .camera import invert, project, transform
-from .fit import CELL_REL, fit_object
+from .fit import CELL_REL, estimate_normals, fit_object, upright_rotation
 from .model import Arrangement, Cuboid, ObservedBox
 from .planes import find_frame, scene_scale
 from .scan_io import ScanInput
@@ -27,6 +27,8 @@ MIN_OBJECT_FRACTION = 1e-3
 #: the 5x5 median by more than ``MASK_DEPTH_REL`` of it is dropped (mixed/shifted depth).
 MASK_ERODE_PX = 2
 MASK_DEPTH_REL = 0.02
+#: Radius of the neighbourhood a normal is estimated from, in cells.
+NORMAL_RADIUS_CELLS = 4.0
 #: Smallest voxel, metres (below the depth noise of any consumer sensor).
 MIN_CELL = 0.002
 
@@ -53,6 +55,31 @@ def _solid_test(scan: ScanInput, T_world_cam: np.ndarray, pix_label: np.ndarray,
         return ~inside | hidden
 
     return solid
+
+
+def _mask_border(scan: ScanInput) -> np.ndarray:
+    """(n,) bool: points within ``MASK_ERODE_PX`` of an instance-mask border whose depth
+    disagrees with the 5x5 median (mixed or shifted depth: only mask interiors are
+    trusted); all False without an instance image."""
+    if scan.instance_image is None or scan.pixels is None or scan.depth is None:
+        return np.zeros(scan.n, dtype=bool)
+    import cv2
+    from scipy.ndimage import maximum_filter, minimum_filter
+
+    img = scan.instance_image
+    size = 2 * MASK_ERODE_PX + 1
+    border = maximum_filter(img, size=size) != minimum_filter(img, size=size)
+    med = cv2.medianBlur(scan.depth.astype(np.float32), 5).astype(float)
+    bad = border & (np.abs(scan.depth - med) > MASK_DEPTH_REL * np.maximum(med, 1e-6))
+    return bad[scan.pixels[:, 0], scan.pixels[:, 1]]
+
+
+def _unreliable(view: ScanInput) -> np.ndarray:
+    """(n,) bool: flying pixels and unreliable mask borders of one RGB-D frame."""
+    if view.pixels is None or view.depth is None:
+        return np.zeros(view.n, dtype=bool)
+    fly = flying_pixels(view.depth)[view.pixels[:, 0], view.pixels[:, 1]]
+    return fly | _mask_border(view)
 
 
 def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: float = CELL_REL,
@@ -107,6 +134,8 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     if camera:
         fly = flying_pixels(scan.depth)
         obj_mask &= ~fly[scan.pixels[:, 0], scan.pixels[:, 1]]
+    elif scan.views:  # fused frames: drop what each frame's own image says is unreliable
+        obj_mask &= ~np.concatenate([_unreliable(v) for v in scan.views])
     # the paper normalises the scene (its objects) to the unit sphere: the cell is relative
     # to the extent of what is not ground or wall
     diameter = scene_scale(world[obj_mask]) if obj_mask.sum() >= 100 else scene_scale(world)
@@ -116,17 +145,7 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     cell = max(cell_rel * diameter, min_cell)
     instance = scan.instance if segmentation != "cluster" else None
     if instance is not None and camera and scan.instance_image is not None:
-        # depth at mask borders is mixed or shifted by the sensor: trust only mask interiors
-        import cv2
-        from scipy.ndimage import maximum_filter, minimum_filter
-
-        img = scan.instance_image
-        size = 2 * MASK_ERODE_PX + 1
-        border = maximum_filter(img, size=size) != minimum_filter(img, size=size)
-        # a border pixel stays when its depth agrees with its neighbourhood's median
-        med = cv2.medianBlur(scan.depth.astype(np.float32), 5).astype(float)
-        bad = border & (np.abs(scan.depth - med) > MASK_DEPTH_REL * np.maximum(med, 1e-6))
-        instance = np.where(bad[scan.pixels[:, 0], scan.pixels[:, 1]], 0, instance)
+        instance = np.where(_mask_border(scan), 0, instance)
     if segmentation == "instance" and (instance is None or not np.any(instance > 0)):
         raise InputError(f"{scan.source}: --segmentation instance but the input has no instance ids")
     parts = segmentation in ("auto", "parts") and instance is not None and bool(scan.instance_objects)
@@ -166,13 +185,23 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     if camera:
         pix_label = np.full(scan.depth.shape, -1, dtype=np.int64)
         pix_label[scan.pixels[:, 0], scan.pixels[:, 1]] = np.where(frame.labels >= 0, -2, labels)
+    normals = np.zeros_like(world)
+    seg = labels >= 0
+    if seg.any():
+        normals[seg] = estimate_normals(world[seg], NORMAL_RADIUS_CELLS * cell)
+    # the parts of one object share its upright frame (more faces seen, one yaw)
+    frames: dict[str, np.ndarray] = {}
+    if parts:
+        for nm in sorted(set(names)):
+            sel = np.isin(labels, [k for k, n2 in enumerate(names) if n2 == nm])
+            frames[nm] = upright_rotation(world[sel], normals[sel])
     boxes = []  # (object index, FittedBox)
+    solid = _solid_test(scan, T_world_cam, pix_label, tol=cell) if camera else None
     for k in range(len(names)):
         sel = labels == k
-        solid = None
-        if camera:
-            solid = _solid_test(scan, T_world_cam, pix_label, tol=cell)
-        for b in fit_object(world[sel], cell, rng, solid=solid, plane_threshold=max(cell, frame.threshold)):
+        for b in fit_object(world[sel], cell, rng, solid=solid,
+                            plane_threshold=max(cell, frame.threshold), normals=normals[sel],
+                            rotation=frames.get(names[k]), single=part_of[k] is not None):
             boxes.append((k, b))
     timings["fit"] = time.perf_counter() - t
 

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .camera import Intrinsics, backproject, read_intrinsics, read_pose
+from .camera import Intrinsics, backproject, read_intrinsics, read_pose, transform
 from .errors import InputError
 
 #: Clouds larger than this are voxel-downsampled right after loading.
@@ -73,6 +73,8 @@ class ScanInput:
         Where it came from (for reports).
     notes : list of str
         What the loader did (downsampled, dropped NaN, ...).
+    views : tuple of ScanInput
+        For a scan fused from several posed frames (``scan/view<k>/``), the frames.
     """
 
     points: np.ndarray
@@ -90,6 +92,9 @@ class ScanInput:
     notes: list = field(default_factory=list)
     #: instance id -> object name (a synthetic scene's ``scene.json``: id k = cuboids[k-1])
     instance_objects: dict = field(default_factory=dict)
+    #: the frames a multi-view scan was fused from (each with its depth image and pose);
+    #: ``points`` then holds all of them in the poses' world frame
+    views: tuple = ()
 
     @property
     def n(self) -> int:
@@ -556,6 +561,9 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
         return p if p.is_absolute() or p.exists() else folder / name
 
     depth_p = resolve(depth, "depth.png")
+    if depth_p is None and depth is None and (folder / "view0" / "depth.png").is_file():
+        return load_views(folder, color=color, intrinsics=intrinsics, depth_format=depth_format,
+                          depth_scale=depth_scale, up=up, max_depth=max_depth, instance=instance)
     if depth_p is None:
         clouds = sorted(folder.glob("*.ply")) + sorted(folder.glob("*.pcd"))
         if clouds and not (folder / "color.png").exists():
@@ -605,14 +613,54 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
     scan = from_rgbd(img, d, intr, T_world_cam=pose, instance_image=inst_img, scribbles=scr,
                      up=up_vec, source=str(depth_p), max_depth=max_depth)
     scan.notes.extend(notes)
-    scene_json = folder.parent / "scene.json" if folder.name == "scan" else None
-    if scene_json is not None and scene_json.is_file() and inst_img is not None:
-        data = read_json(scene_json)
-        cubs = data.get("cuboids", []) if isinstance(data, dict) else []
-        names = {k + 1: str(c.get("object") or c.get("id", k)) for k, c in enumerate(cubs)
-                 if isinstance(c, dict)}
-        scan = replace(scan, instance_objects=names)
+    if inst_img is not None:
+        scan = replace(scan, instance_objects=_scene_objects(folder))
     return scan
+
+
+def _scene_objects(folder: Path) -> dict:
+    """Instance id -> object name from the ``scene.json`` of a synthetic scene directory
+    (``folder`` is its ``scan/`` or a ``scan/view<k>/``); empty elsewhere."""
+    for up_dir in (folder, folder.parent):
+        if up_dir.name == "scan" and (up_dir.parent / "scene.json").is_file():
+            data = read_json(up_dir.parent / "scene.json")
+            cubs = data.get("cuboids", []) if isinstance(data, dict) else []
+            return {k + 1: str(c.get("object") or c.get("id", k)) for k, c in enumerate(cubs)
+                    if isinstance(c, dict)}
+    return {}
+
+
+def load_views(folder: Path, **options) -> ScanInput:
+    """A scan of several posed RGB-D frames ``folder/view0/``, ``view1/``, ... fused into one.
+
+    Every frame needs its ``camera_pose.json`` (the poses put the frames in one world
+    frame).  The result holds all points in that frame (``T_world_cam`` the identity,
+    no single image) with their colours and instance ids, and the frames themselves in
+    ``views`` for what needs the images (visibility, mask borders).
+    """
+    dirs = sorted((d for d in folder.iterdir()
+                   if d.is_dir() and re.fullmatch(r"view\d+", d.name)),
+                  key=lambda d: int(d.name[4:]))
+    frames = []
+    for d in dirs:
+        if not (d / "depth.png").is_file():
+            continue
+        f = load_scan(d, **options)
+        if f.T_world_cam is None:
+            raise InputError(f"{d}: camera_pose.json missing; every view of a multi-view scan "
+                             "needs its camera-to-world pose")
+        frames.append(f)
+    if not frames:
+        raise InputError(f"{folder}: no view<k>/depth.png here")
+    pts = np.concatenate([transform(f.T_world_cam, f.points) for f in frames])
+    colors = (np.concatenate([f.colors for f in frames])
+              if all(f.colors is not None for f in frames) else None)
+    inst = (np.concatenate([f.instance for f in frames])
+            if all(f.instance is not None for f in frames) else None)
+    return ScanInput(points=pts, colors=colors, instance=inst, T_world_cam=np.eye(4),
+                     up=frames[0].up, source=str(folder),
+                     notes=[f"fused {len(frames)} views ({', '.join(d.name for d in dirs)})"],
+                     instance_objects=frames[0].instance_objects, views=tuple(frames))
 
 
 #: Kinect v1 / PrimeSense default intrinsics at 640x480 (what Open3D assumes for its test data).

@@ -16,6 +16,7 @@ from eval.metrics import (
     compare_graphs,
     contact_graph,
     initial_arrangement,
+    initial_graph,
     match_cuboids,
     match_supports,
     pairwise_iou,
@@ -352,9 +353,24 @@ def test_initial_graph_from_geometry():
     init = initial_arrangement(pred)
     np.testing.assert_allclose(init.sizes[:, 2], gt.sizes[:, 2] * 0.6)
     s = score_arrangement(pred, gt, graph="union")
-    # observed boxes float above the ground and above g0 top: nothing touches initially
+    # observed boxes float 0.1-0.12 m above the ground and above g0's top: farther than
+    # the initial graph's 2 cm, so nothing touches initially
     assert s.initial.typed.n_pred == 0 and s.initial.typed.recall == 0.0
     # the truth's geometry adds no pair that is not listed (g1 on g0, g0 and g2 on ground)
     assert {(a, b) for a, b, _ in contact_graph(gt)} == {(a, b) for a, b, _ in
                                                          contact_graph(gt, "listed")}
     assert s.optimized.untyped.f1 == 1.0
+
+
+@pytest.mark.parametrize(("gap", "expected"), [(0.0199, True), (0.0201, False)])
+def test_initial_graph_counts_pairs_within_two_centimetres(gap, expected):
+    # a box hovering `gap` above another (yawed, so the faces are not aligned) and `gap`
+    # above the ground elsewhere: both pairs are in the initial graph iff gap <= 2 cm
+    lower = box("a", (0, 0, 0.25), (1.0, 0.8, 0.5))
+    upper = box("b", (0.1, 0, 0.5 + gap + 0.2), (0.4, 0.4, 0.4), yaw=0.3)
+    apart = box("c", (3.0, 0, 0.15 + gap), (0.3, 0.3, 0.3))
+    edges = initial_graph(Arrangement((lower, upper, apart), (ground(),)))
+    assert (("a", "b", "touch") in edges) is expected
+    assert (("c", "ground", "touch") in edges) is expected
+    assert ("a", "ground", "touch") in edges  # resting exactly
+    assert not any("c" in e[:2] and "a" in e[:2] for e in edges)

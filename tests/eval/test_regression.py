@@ -55,7 +55,7 @@ def test_within_tolerance_passes(measured: tuple[Path, dict]) -> None:
     assert _run(tmp / "out", _with(tmp, "slack.json", slack))[0] == 0
 
 
-@pytest.mark.parametrize("flip", [{"f1": 1.01}, {"fixed": -1}, {"stands": 2}, {"agree": 2}])
+@pytest.mark.parametrize("flip", [{"f1": 1.05}, {"fixed": -1}, {"stands": 2}, {"agree": 2}])
 def test_flipped_expectation_fails(measured: tuple[Path, dict], flip: dict) -> None:
     tmp, fig = measured
     (name,) = flip
