@@ -10,13 +10,18 @@ from hypothesis import strategies as st
 from pipeline.fit import (
     _sat,
     box_iou,
+    estimate_normals,
+    face_extents,
     fit_object,
+    fit_part,
     fit_upright,
     ground_rotation,
     grow_slab,
     merge_slabs,
+    normal_yaw,
     slabs,
     slant_frame,
+    upright_rotation,
 )
 from pipeline.model import rotation_about_axis, rotation_about_z
 
@@ -178,3 +183,60 @@ def test_box_iou_closed_form():
     iou = box_iou(np.zeros(3), np.eye(3), np.ones(3), np.array([0.5, 0, 0]), np.eye(3), np.ones(3),
                   samples=400_000)
     assert iou == pytest.approx(1 / 3, abs=0.01)
+
+
+def _seen_faces(rng, c, yaw, s, sigma, n=6000):
+    """Noisy points on the faces of an upright box a camera at -x, -y, +z sees: the
+    faces whose outward normals are -x_local, -y_local and +z, with Gaussian noise of
+    ``sigma`` along each face's normal (depth noise), and their true normals."""
+    R = rotation_about_z(yaw)
+    s = np.asarray(s, float)
+    areas = np.array([s[1] * s[2], s[0] * s[2], s[0] * s[1]])
+    face = rng.choice(3, n, p=areas / areas.sum())
+    u = rng.random((n, 3)) - 0.5
+    u[np.arange(n), face] = np.where(face == 2, 0.5, -0.5)
+    u[np.arange(n), face] += rng.normal(0.0, sigma, n) / s[face]
+    normals = np.zeros((n, 3))
+    normals[np.arange(n), face] = np.where(face == 2, 1.0, -1.0)
+    return np.asarray(c) + (u * s) @ R.T, normals @ R.T
+
+
+@pytest.mark.parametrize("yaw_deg", [3.0, 27.0, 41.9, 66.0, 88.0])
+def test_normal_yaw_recovers_the_yaw_of_a_partly_seen_noisy_box(yaw_deg):
+    rng = np.random.default_rng(int(yaw_deg))
+    pts, _ = _seen_faces(rng, (0.2, 0.1, 0.3), np.radians(yaw_deg), (0.34, 0.18, 0.2), 0.006)
+    normals = estimate_normals(pts, 0.04)
+    a = np.degrees(normal_yaw(normals))
+    err = (a - yaw_deg + 45.0) % 90.0 - 45.0
+    assert abs(err) < 1.5
+    # and the frame built from it is the box's frame up to a quarter turn
+    R = upright_rotation(pts, normals)
+    M = np.abs(R.T @ rotation_about_z(np.radians(yaw_deg)))
+    assert M.max(axis=1).min() > np.cos(np.radians(1.5))
+
+
+def test_normal_yaw_declines_a_round_object():
+    rng = np.random.default_rng(0)
+    t = rng.uniform(0, 2 * np.pi, 4000)
+    z = rng.uniform(0, 0.3, 4000)
+    pts = np.stack([0.1 * np.cos(t), 0.1 * np.sin(t), z], 1)  # a cylinder's side
+    normals = estimate_normals(pts, 0.03)
+    assert normal_yaw(normals) is None
+    # so the frame falls back to the outline's rectangle
+    np.testing.assert_allclose(upright_rotation(pts, normals), ground_rotation(pts))
+
+
+def test_face_extents_place_seen_faces_at_their_median_not_their_noisy_extremes():
+    rng = np.random.default_rng(5)
+    s = np.array([0.4, 0.25, 0.3])
+    sigma = 0.008
+    pts, normals = _seen_faces(rng, (0, 0, 0), 0.0, s, sigma, n=20000)
+    lo, hi = face_extents(pts, normals)
+    # the seen faces (-x, -y, +z) land within 2 mm of the truth; the extremes overshoot
+    np.testing.assert_allclose([lo[0], lo[1], hi[2]], [-s[0] / 2, -s[1] / 2, s[2] / 2], atol=0.002)
+    assert pts[:, 0].min() < -s[0] / 2 - 2 * sigma
+    # the unseen far faces are bounded by the edges of the seen ones (1st/99th percentile)
+    np.testing.assert_allclose([hi[0], hi[1]], [s[0] / 2, s[1] / 2], atol=0.01)
+    boxes = fit_part(pts, normals, 0.01, np.eye(3))
+    assert len(boxes) == 1
+    np.testing.assert_allclose(boxes[0].size, s, atol=0.012)
