@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import find_contacts
+from .contacts import ContactSet, find_contacts, update_contacts
 from .errors import InputError
 from .model import Arrangement, Cuboid
 from .stability import check_stability
@@ -48,6 +48,47 @@ def _with_params(arr: Arrangement, k: int, center: np.ndarray, size: np.ndarray)
     return arr.with_(cuboids=tuple(cubs))
 
 
+#: the per-refinement cache of component solutions is cleared beyond this many entries
+SOLVE_CACHE_MAX = 4096
+
+
+class _Evaluator:
+    """E of variants of one arrangement that differ from a base in a cuboid or two.
+
+    Exact reuse, so results equal plain ``check_stability(arr, ...)``: contacts are
+    updated from the base's (:func:`pipeline.contacts.update_contacts` equals
+    :func:`pipeline.contacts.find_contacts`), and components of the equilibrium that a
+    move leaves unchanged take their solution from a digest-keyed cache
+    (``check_stability(solve_cache=...)``).
+    """
+
+    def __init__(self, arr: Arrangement, mu: float, tilt_deg: float) -> None:
+        self.mu, self.tilt_deg = mu, tilt_deg
+        self.cache: dict[bytes, tuple] = {}
+        self.rebase(arr, find_contacts(arr))
+
+    def rebase(self, arr: Arrangement, contacts: ContactSet) -> None:
+        self.base, self.base_contacts = arr, contacts
+
+    def contacts(self, arr: Arrangement) -> ContactSet:
+        if arr is self.base:
+            return self.base_contacts
+        return update_contacts(arr, self.base, self.base_contacts)
+
+    def __call__(self, arr: Arrangement) -> tuple[float, object, ContactSet]:
+        cs = self.contacts(arr)
+        if len(self.cache) > SOLVE_CACHE_MAX:
+            self.cache.clear()
+        try:
+            res = check_stability(arr, mu=self.mu, tilt_deg=self.tilt_deg, contacts=cs,
+                                  solve_cache=self.cache)
+        except InputError:  # a fixed pair pulled apart
+            return float("inf"), None, cs
+        if res.status != "ok":
+            return float("inf"), res, cs
+        return res.energy, res, cs
+
+
 def _energy(arr: Arrangement, mu: float, tilt_deg: float = 0.0) -> tuple[float, object]:
     try:
         res = check_stability(arr, mu=mu, tilt_deg=tilt_deg)
@@ -58,9 +99,10 @@ def _energy(arr: Arrangement, mu: float, tilt_deg: float = 0.0) -> tuple[float, 
     return res.energy, res
 
 
-def _constraints(arr: Arrangement, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _constraints(arr: Arrangement, k: int, cs: ContactSet | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Equality rows (touching contacts of box k) and containment inequalities (G, h)."""
-    cs = find_contacts(arr)
+    cs = find_contacts(arr) if cs is None else cs
     c = arr.cuboids[k]
     rows = []
     for m in range(cs.count):
@@ -120,7 +162,8 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     """
     import time
 
-    E0, res = _energy(arr, mu, tilt_deg)
+    energy = _Evaluator(arr, mu, tilt_deg)
+    E0, res, _ = energy(arr)
     evals = 1
     E = E0
     steps = 0
@@ -141,7 +184,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
                 for sgn in (1, -1):
                     x = x0.copy()
                     x[p] += sgn * h_fd
-                    e, _ = _energy(_with_params(arr, k, x[:3], x[3:]), mu, tilt_deg)
+                    e, _, _ = energy(_with_params(arr, k, x[:3], x[3:]))
                     evals += 1
                     grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
             if best is None or np.linalg.norm(grad) > np.linalg.norm(best[1]):
@@ -149,7 +192,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
         if best is None or np.linalg.norm(best[1]) == 0:
             break
         k, grad = best
-        A, G, hh = _constraints(arr, k)
+        A, G, hh = _constraints(arr, k, energy.contacts(arr))
         c = arr.cuboids[k]
         improved = False
         alpha = 0.05 * scale
@@ -158,10 +201,11 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
             if delta is None:
                 break
             trial = _with_params(arr, k, c.center + delta[:3], c.size + delta[3:])
-            e, r = _energy(trial, mu, tilt_deg)
+            e, r, cs = energy(trial)
             evals += 1
             if e < E:
                 arr, E, res, improved = trial, e, r, True
+                energy.rebase(trial, cs)
                 break
             alpha /= 2
         steps += 1
