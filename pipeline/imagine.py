@@ -35,6 +35,9 @@ from .refine import refine
 from .search import search
 from .symmetry import hallucinate
 
+#: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
+ISOLATE_ROUNDS = 3
+
 
 @dataclass(frozen=True)
 class ImagineResult:
@@ -200,21 +203,26 @@ def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float =
 
 def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
                 tilt_deg: float | None = None, deadline: float = float("inf"),
-                max_steps: int = 8, max_group: int = 16) -> tuple[Arrangement, int, int]:
-    """Turn ``fixed`` contacts between different objects into ``touch`` where refinement
-    makes the arrangement stand without them.
+                max_steps: int = 8, max_group: int = 16, views: list[DepthView] | None = None,
+                margin: float = 0.0) -> tuple[Arrangement, int, int]:
+    """Turn ``fixed`` contacts between different objects into ``touch`` where a box that
+    was seen only in part can be completed so that the arrangement stands without them.
 
     The search judges the boxes as fitted; noisy, partly seen boxes put a centre of mass
-    a little off (a stacked box seen from the front looks shallower than it is, so it
-    seems to hang over its support's front edge), and the search pays with a glue joint
-    the scene does not have.  For each such joint (in contact order) the joint becomes a
-    ``touch``, the boxes of its connected group are refined (:func:`pipeline.refine.refine`
-    with gravity tilted by ``tilt_deg``, so the result has a margin), and the change is
-    kept when the group then stands robustly and nothing interpenetrates.  Joints within
-    one object (a table's legs) are left: they are what holds an object together.  Each
-    trial refines at most ``max_steps`` steps and only groups of up to ``max_group``
-    cuboids (so the outcome does not depend on the machine's speed); no trial starts
-    after ``deadline``.
+    off (a box under another, half hidden by it, looks too short to carry it), and the
+    search pays with a glue joint the scene does not have.  For each such joint (in
+    contact order) the joint becomes a ``touch`` and, smallest added volume first,
+
+    1. one horizontal face of either box grows by a quarter, a half or all of the box's
+       extent there, into space no depth view saw empty (``views``) and without
+       interpenetration;
+    2. else the boxes of the joint's connected group are refined
+       (:func:`pipeline.refine.refine`, at most ``max_steps`` steps, groups of up to
+       ``max_group`` cuboids so the outcome does not depend on the machine's speed);
+
+    and the first variant under which the group stands with gravity tilted by
+    ``tilt_deg`` (a margin) is kept.  Joints within one object (a table's legs) are
+    left: they are what holds an object together.  No trial starts after ``deadline``.
 
     Returns (arrangement, joints tried, joints relaxed); the stability summary is left
     for the caller to recompute.
@@ -227,6 +235,13 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
     tilt = ROBUST_TILT_DEG if tilt_deg is None else tilt_deg
     objects = {c.id: c.object for c in final.cuboids}
     tried = relaxed = 0
+
+    def stands(arr: Arrangement) -> bool:
+        try:
+            return check_stability(arr, mu=mu, threshold=threshold, tilt_deg=tilt).stable
+        except InputError:  # a fixed pair pulled apart
+            return False
+
     for i in range(len(final.contacts)):
         c = final.contacts[i]
         if c.type != "fixed" or c.a not in objects:
@@ -240,24 +255,73 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
                          for j, x in enumerate(final.contacts))
         trial = final.with_(contacts=contacts, stability=None)
         group = _touching_group(trial, c.a)
-        if len(group) > max_group:
-            continue
         sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
                           contacts=tuple(x for x in contacts
                                          if x.a in group and (x.b in group or x.b not in objects)))
-        try:
-            refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt).arrangement
-            if not check_stability(refined, mu=mu, threshold=threshold, tilt_deg=tilt).stable:
-                continue
-        except InputError:  # a fixed pair pulled apart
+        found = None
+        for grown in _growths(sub, [c.a, c.b], views or [], margin):
+            if stands(grown):
+                found = grown
+                break
+        if found is None and len(group) <= max_group:
+            try:
+                refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt).arrangement
+            except InputError:
+                refined = None
+            if refined is not None and stands(refined):
+                found = refined
+        if found is None:
             continue
-        moved = {x.id: x for x in refined.cuboids}
+        moved = {x.id: x for x in found.cuboids}
         merged = trial.with_(cuboids=tuple(moved.get(x.id, x) for x in trial.cuboids))
         if find_contacts(merged).penetrations:
             continue
         final = merged
         relaxed += 1
     return final, tried, relaxed
+
+
+#: Growths tried per face by :func:`relax_fixed`, as fractions of the box's extent there
+#: (besides the pushes that reach the partner box's centre and its far side).
+GROWTH_FRACTIONS = (0.25, 0.5, 1.0)
+
+
+def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
+             margin: float) -> list[Arrangement]:
+    """Variants of ``arr`` with one horizontal face of one of the two boxes ``ids``
+    pushed out, into space no view saw empty and without interpenetration, smallest
+    added volume first.  A face is pushed by :data:`GROWTH_FRACTIONS` of the box's extent
+    and, when it faces the other box, until it reaches that box's centre or its far
+    side (the paper's extension length, horizontally: under a box that overhangs)."""
+    from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
+
+    out = []
+    boxes = [arr.cuboids[arr.index[i]] for i in ids if i in arr.index]
+    for c in boxes:
+        k = arr.index[c.id]
+        other = [o for o in boxes if o.id != c.id]
+        for axis in range(3):
+            if abs(c.rotation[2, axis]) > 0.5:  # the vertical axis: extensions do that
+                continue
+            for side in (0, 1):
+                u = c.rotation[:, axis] * (1.0 if side else -1.0)
+                face = float(c.center @ u + c.size[axis] / 2)
+                lengths = {round(f * float(c.size[axis]), 6) for f in GROWTH_FRACTIONS}
+                for o in other:
+                    lengths |= {round(float(o.center @ u) - face, 6),
+                                round(float((o.corners() @ u).max()) - face, 6)}
+                for length in sorted(x for x in lengths if x > 1e-4):
+                    x = Extension(k, axis, side, length)
+                    if views and visible_free_fraction(slab_samples(arr, x), views,
+                                                       margin) > FREE_FRACTION_MAX:
+                        break  # a longer push would cross the same seen-empty space
+                    size = c.size.copy()
+                    size[axis] += length
+                    cubs = list(arr.cuboids)
+                    cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
+                    out.append((x.volume(arr.sizes), len(out), arr.with_(cuboids=tuple(cubs))))
+    out.sort(key=lambda t: t[:2])
+    return [g for _v, _n, g in out if not find_contacts(g).penetrations]
 
 
 def _touching_group(arr: Arrangement, start: str) -> set[str]:
@@ -358,15 +422,43 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
     t = time.perf_counter()
     result = search(arr, edges, budget=budget, mu=mu, threshold=threshold, progress=progress)
+    # boxes nothing can hold up (their support was never seen) are set aside and the rest
+    # searched again: glue cannot save them, and gluing their whole group would only hide
+    # the contacts the rest of the scene does have
+    prepared = arr
+    full = (arr, edges, result)
+    aside: list[Cuboid] = []
+    for _ in range(ISOLATE_ROUNDS):
+        bad = set(result.unstable_ids)
+        if result.stable or not bad or len(bad) >= len(arr.cuboids):
+            break
+        aside += [c for c in arr.cuboids if c.id in bad]
+        arr = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id not in bad))
+        edges, _ = prune_by_visibility(arr, candidate_edges(arr), views, margin)
+        left = max(budget - (time.perf_counter() - t), 0.25 * budget)
+        result = search(arr, edges, budget=left, mu=mu, threshold=threshold)
     timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
     final, joins = connect_objects(result.arrangement, arr, edges, mu=mu, threshold=threshold)
+    if aside:
+        from .search import finalize
+
+        with_aside = final.with_(cuboids=final.cuboids + tuple(aside), stability=None)
+        if find_contacts(with_aside).penetrations:  # an extension grew into one: undo
+            arr, edges, result = full
+            aside = []
+            final, joins = connect_objects(result.arrangement, arr, edges, mu=mu,
+                                           threshold=threshold)
+        else:
+            final = finalize(with_aside, [c for c in final.contacts if c.type == "fixed"],
+                             mu=mu, threshold=threshold)
     timings["connect"] = time.perf_counter() - t
 
     t = time.perf_counter()
     final, relax_tried, relaxed = relax_fixed(final, mu=mu, threshold=threshold,
-                                              deadline=t0 + 1.5 * budget)
+                                              deadline=t0 + 1.5 * budget, views=views,
+                                              margin=margin)
     if relaxed:
         from .search import finalize
 
@@ -403,6 +495,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "search": result.stats.to_json(),
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
+        "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "added_volume_m3": result.added_volume,
         "refine": None if refined is None else {
@@ -413,7 +506,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "unstable": list(unstable),
         "timings": timings,
     }
-    return ImagineResult(final, arr, report)
+    return ImagineResult(final, prepared, report)
 
 
 __all__ = ["imagine", "ImagineResult", "repair_overlaps", "views_from_scan", "depth_noise",
