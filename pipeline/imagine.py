@@ -85,6 +85,69 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     return arr, repaired
 
 
+#: A box is "seen face-on" when its extent along a horizontal axis within 45 degrees of
+#: the viewing direction is below this fraction of its largest extent ...
+THIN_FRACTION = 0.2
+#: ... and then its hidden back face is pushed to give it this fraction of that extent.
+THIN_DEPTH = 0.5
+
+
+def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 0.0,
+                      steps: int = 4) -> tuple[Arrangement, list[str]]:
+    """Give depth to boxes the sensor saw only face-on.
+
+    A part seen from the front (a book's spine, a pillar's face) is fitted as a slab a
+    few millimetres deep along the viewing direction: its depth is simply not in the
+    data, and as a sliver it can stand only glued.  Such a box (horizontal extent along
+    an axis within 45 degrees of the first view's horizontal direction below
+    :data:`THIN_FRACTION` of its largest extent) has its back face pushed away from the
+    camera towards :data:`THIN_DEPTH` of that extent, in ``steps`` increments, as far as
+    no view saw the added space empty and no other box is entered.  Returns the
+    arrangement and the ids deepened.
+    """
+    from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
+
+    if not views:
+        return arr, []
+    eye = np.asarray(views[0].T_world_cam, float)[:3, 3]
+    deepened = []
+    for k in range(len(arr.cuboids)):
+        c = arr.cuboids[k]
+        look = c.center - eye
+        look[2] = 0.0  # the horizontal viewing direction (cameras often look down steeply)
+        if np.linalg.norm(look) < 1e-9:
+            continue
+        look /= np.linalg.norm(look)
+        big = float(c.size.max())
+        for axis in range(3):
+            along = float(c.rotation[:, axis] @ look)
+            if (abs(c.rotation[2, axis]) > 0.5 or abs(along) < np.cos(np.radians(45))
+                    or c.size[axis] >= THIN_FRACTION * big):
+                continue
+            side = 1 if along > 0 else 0  # the face away from the camera
+            u = c.rotation[:, axis] * (1.0 if side else -1.0)
+            full = THIN_DEPTH * big - float(c.size[axis])
+            best = None
+            for j in range(1, steps + 1):
+                length = full * j / steps
+                x = Extension(k, axis, side, length)
+                if visible_free_fraction(slab_samples(arr, x), views, margin) > FREE_FRACTION_MAX:
+                    break
+                size = c.size.copy()
+                size[axis] += length
+                cubs = list(arr.cuboids)
+                cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
+                trial = arr.with_(cuboids=tuple(cubs))
+                if any(c.id in (a, b) for a, b, _ in find_contacts(trial).penetrations):
+                    break
+                best = trial
+            if best is not None:
+                arr = best
+                deepened.append(c.id)
+            break
+    return arr, deepened
+
+
 def _same_part(a: Cuboid, b: Cuboid) -> bool:
     """False when the segmentation gave the two boxes different part ids."""
     ia, ib = a.extra.get("instance"), b.extra.get("instance")
@@ -213,9 +276,8 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
     search pays with a glue joint the scene does not have.  For each such joint (in
     contact order) the joint becomes a ``touch`` and, smallest added volume first,
 
-    1. one horizontal face of either box grows by a quarter, a half or all of the box's
-       extent there, into space no depth view saw empty (``views``) and without
-       interpenetration;
+    1. one horizontal face of either box grows (:func:`_growths`), into space no depth
+       view saw empty (``views``) and without interpenetration;
     2. else the boxes of the joint's connected group are refined
        (:func:`pipeline.refine.refine`, at most ``max_steps`` steps, groups of up to
        ``max_group`` cuboids so the outcome does not depend on the machine's speed);
@@ -292,7 +354,9 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
     pushed out, into space no view saw empty and without interpenetration, smallest
     added volume first.  A face is pushed by :data:`GROWTH_FRACTIONS` of the box's extent
     and, when it faces the other box, until it reaches that box's centre or its far
-    side (the paper's extension length, horizontally: under a box that overhangs)."""
+    side (the paper's extension length, horizontally: under a box that overhangs), and
+    by the same fractions of the box's widest horizontal extent (a part seen edge-on,
+    such as a pillar seen only from the front, has almost no depth)."""
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
     out = []
@@ -306,7 +370,11 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
             for side in (0, 1):
                 u = c.rotation[:, axis] * (1.0 if side else -1.0)
                 face = float(c.center @ u + c.size[axis] / 2)
-                lengths = {round(f * float(c.size[axis]), 6) for f in GROWTH_FRACTIONS}
+                # fractions of this extent, and of the widest horizontal one (a slab seen
+                # edge-on, a pillar seen from the front, has almost no depth)
+                widest = max(float(c.size[a]) for a in range(3) if abs(c.rotation[2, a]) <= 0.5)
+                lengths = {round(f * e, 6) for f in GROWTH_FRACTIONS
+                           for e in (float(c.size[axis]), widest)}
                 for o in other:
                     lengths |= {round(float(o.center @ u) - face, 6),
                                 round(float((o.corners() @ u).max()) - face, 6)}
@@ -409,6 +477,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     if views:
         scale = arr.scale_length()
         margin = 0.05 * scale
+    arr, deepened = deepen_thin_boxes(arr, views, margin)
     hallucinated = []
     if symmetry:
         arr, hallucinated = hallucinate(arr, views, margin)
@@ -495,6 +564,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "search": result.stats.to_json(),
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
+        "deepened": deepened,
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "added_volume_m3": result.added_volume,
