@@ -320,8 +320,8 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
         sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
                           contacts=tuple(x for x in contacts
                                          if x.a in group and (x.b in group or x.b not in objects)))
-        found = None
-        for grown in _growths(sub, [c.a, c.b], views or [], margin):
+        found = sub if stands(sub) else None  # the search may have kept a spare joint
+        for grown in ([] if found is not None else _growths(sub, [c.a, c.b], views or [], margin)):
             if stands(grown):
                 found = grown
                 break
@@ -334,9 +334,10 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
                 found = refined
         if found is None:
             continue
-        moved = {x.id: x for x in found.cuboids}
+        moved = {x.id: x for x in found.cuboids if x is not sub.cuboids[sub.index[x.id]]}
         merged = trial.with_(cuboids=tuple(moved.get(x.id, x) for x in trial.cuboids))
-        if find_contacts(merged).penetrations:
+        if moved and any(a in moved or b in moved
+                         for a, b, _ in find_contacts(merged).penetrations):
             continue
         final = merged
         relaxed += 1
@@ -387,9 +388,11 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
                     size[axis] += length
                     cubs = list(arr.cuboids)
                     cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
-                    out.append((x.volume(arr.sizes), len(out), arr.with_(cuboids=tuple(cubs))))
+                    out.append((x.volume(arr.sizes), len(out), c.id,
+                                arr.with_(cuboids=tuple(cubs))))
     out.sort(key=lambda t: t[:2])
-    return [g for _v, _n, g in out if not find_contacts(g).penetrations]
+    return [g for _v, _n, cid, g in out
+            if not any(cid in (a, b) for a, b, _ in find_contacts(g).penetrations)]
 
 
 def _touching_group(arr: Arrangement, start: str) -> set[str]:
@@ -514,7 +517,9 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         from .search import finalize
 
         with_aside = final.with_(cuboids=final.cuboids + tuple(aside), stability=None)
-        if find_contacts(with_aside).penetrations:  # an extension grew into one: undo
+        ids = {c.id for c in aside}
+        if any(a in ids or b in ids  # an extension grew into one: undo
+               for a, b, _ in find_contacts(with_aside).penetrations):
             arr, edges, result = full
             aside = []
             final, joins = connect_objects(result.arrangement, arr, edges, mu=mu,
