@@ -43,8 +43,9 @@ group of bodies (connected through free-free contacts).
 :math:`\min \tfrac12\|r\|^2` s.t. :math:`\tilde D\lambda - r = \tilde b,\ \lambda \ge 0`,
 solved through its dual by Clarabel (interior point), group by group.
 ``auto`` works per independent group: it first tries a *load path* certificate
-(:func:`load_path`: loads carried from the top body down, one 6-row NNLS per body; an
-exact solution proves E = 0), then a frictionless certificate, then picks ``nnls`` for
+(:func:`load_path`: loads carried from the top body down, one 6-row NNLS per body, a
+body that cannot carry what was put on it balanced jointly with the bodies that loaded
+it; an exact solution proves E = 0), then a frictionless certificate, then picks ``nnls`` for
 groups with few unknowns and ``qp`` otherwise.  Tests check that the backends agree.
 A caller that checks many similar arrangements (the search) passes ``solve_cache``: a
 group whose sub-problem digest (its column blocks, their layout, body heights and
@@ -433,8 +434,8 @@ def _body_columns(system: EquilibriumSystem) -> tuple[np.ndarray, np.ndarray, np
 
 def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
-              grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-              ) -> np.ndarray | None:
+              grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+              max_cluster: int | None = None) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -445,6 +446,19 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     and furniture resting on the floor pass; structures that need a lower body to be
     held by an upper one (counterweights) return None and go to the global solvers.
 
+    The per-body choice is arbitrary where a body has more supports than it needs, and
+    a choice can load a lower body with more than it can carry (a slab braced between a
+    wall and a neighbour by a large couple) although another choice would do.  When a
+    body fails, the bodies that loaded it are therefore merged with it into a *cluster*
+    that is balanced jointly (one NNLS over the cluster's rows: its internal forces are
+    free again), the bodies processed since the earliest of them are taken back, and the
+    pass resumes from there (the bodies still to come that the loaders also press on join
+    the cluster at once).  Clusters grow up to ``max_cluster`` bodies
+    (``LOAD_PATH_MAX_CLUSTER``) in at most ``LOAD_PATH_MAX_MERGES`` merges; beyond that the
+    certificate gives up (None) and the global solvers decide.  Whatever
+    the merging, the result is a ``lambda >= 0`` that balances every body to ``tol``,
+    so the certificate stays exact.
+
     ``bodies`` (free-body row blocks) restricts the pass to one independent component
     (its columns act only on its own bodies and on anchored ones, so its certificate is
     independent of the rest); the returned vector is then only meaningful on the
@@ -454,44 +468,147 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
 
     if system.blocks is None:
         return None
+    max_cluster = LOAD_PATH_MAX_CLUSTER if max_cluster is None else max_cluster
     ncol = len(system.col_vertex)
     lam = np.zeros(ncol)
+    owner = -np.ones(ncol, int)  # position of the unit that set each column
     done = np.zeros(len(system.free), bool)
     usable = np.ones(ncol, bool) if column_mask is None else column_mask
     cols_all, side_all, starts = _body_columns(system) if grouping is None else grouping
     rows_of = np.arange(len(system.free)) if bodies is None else np.asarray(bodies)
-    for r in rows_of[np.argsort(-system.free_height[rows_of], kind="stable")]:
-        c = cols_all[starts[r]:starts[r + 1]]
-        sd = side_all[starts[r]:starts[r + 1]]
-        keep = usable[c]
-        c, sd = c[keep], sd[keep]
-        other = system.col_row[c, 1 - sd]
-        known = (other >= 0) & done[np.maximum(other, 0)]
-        coef = system.blocks[c, sd]  # (k, 6)
-        rhs = system.b[6 * r:6 * r + 6] - coef[known].T @ lam[c[known]]
-        cu, coef_u = c[~known], coef[~known]
-        if len(cu) == 0:
-            if np.linalg.norm(rhs) > tol:
-                return None
-            done[r] = True
+    units = [[int(r)] for r in rows_of[np.argsort(-system.free_height[rows_of], kind="stable")]]
+    i = merges = 0
+    while i < len(units):
+        unit = units[i]
+        if len(unit) == 1:
+            ok = _balance_body(system, unit[0], lam, owner, i, done, usable, cols_all, side_all,
+                               starts, tol, nnls)
+        else:
+            ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
+                                  starts, tol, nnls)
+        if ok:
+            done[unit] = True
+            i += 1
             continue
-        # 1) normal forces only (the mean of a vertex's pyramid edges is its normal): passes
-        #    no friction down, so lower bodies are not loaded sideways by arbitrary choices
-        vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
-        per_vert = np.bincount(inv, minlength=len(vert))
-        normal_coef = np.zeros((len(vert), 6))
-        np.add.at(normal_coef, inv, coef_u)
-        normal_coef /= per_vert[:, None]
-        x, res = nnls(normal_coef.T, rhs, maxiter=200 * max(len(vert), 10))
-        if res <= tol:
-            lam[cu] = (x / per_vert)[inv]
-        else:  # 2) with friction
-            x, res = nnls(coef_u.T, rhs, maxiter=200 * max(len(cu), 10))
-            if res > tol:
-                return None
-            lam[cu] = x
-        done[r] = True
+        # merge the unit with the units of the bodies that loaded it, and resume there
+        c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
+        sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
+        keep = usable[c]
+        other = system.col_row[c[keep], 1 - sd[keep]]
+        loaders = set(other[(other >= 0) & done[np.maximum(other, 0)]].tolist())
+        if not loaders:
+            return None
+        pos = {r: k for k, u in enumerate(units[:i]) for r in u}
+        merge = sorted({pos[r] for r in loaders})
+        # the bodies that the loaders also load, still to come, join too (books standing
+        # in a shelf whose fused top rests on them would otherwise fail one by one)
+        later = {r for u in units[i + 1:] for r in u}
+        lc = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in loaders])
+        ls = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in loaders])
+        loaded = system.col_row[lc, 1 - ls]
+        loaded = set(loaded[loaded >= 0].tolist()) & later
+        merge += sorted({k for k, u in enumerate(units[i + 1:], start=i + 1) if loaded & set(u)})
+        cluster = sorted(set(unit).union(*(units[k] for k in merge)))
+        merges += 1
+        if len(cluster) > max_cluster or merges > LOAD_PATH_MAX_MERGES:
+            return None
+        j = merge[0]
+        for u in units[j:i]:
+            done[u] = False
+        undo = owner >= j
+        lam[undo] = 0.0
+        owner[undo] = -1
+        rest = [u for k, u in enumerate(units[j:], start=j) if k not in merge and k != i]
+        units = units[:j] + [cluster] + rest
+        i = j
     return lam
+
+
+#: largest cluster of bodies that :func:`load_path` balances jointly before giving up
+LOAD_PATH_MAX_CLUSTER = 12
+#: and the most merges it tries
+LOAD_PATH_MAX_MERGES = 2
+
+
+def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, starts, tol,
+                  nnls) -> bool:
+    """Balance free body ``r`` with its contacts to bodies not yet done (see load_path)."""
+    c = cols_all[starts[r]:starts[r + 1]]
+    sd = side_all[starts[r]:starts[r + 1]]
+    keep = usable[c]
+    c, sd = c[keep], sd[keep]
+    other = system.col_row[c, 1 - sd]
+    known = (other >= 0) & done[np.maximum(other, 0)]
+    coef = system.blocks[c, sd]  # (k, 6)
+    rhs = system.b[6 * r:6 * r + 6] - coef[known].T @ lam[c[known]]
+    cu, coef_u = c[~known], coef[~known]
+    if len(cu) == 0:
+        return bool(np.linalg.norm(rhs) <= tol)
+    # 1) normal forces only (the mean of a vertex's pyramid edges is its normal): passes
+    #    no friction down, so lower bodies are not loaded sideways by arbitrary choices
+    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    per_vert = np.bincount(inv, minlength=len(vert))
+    normal_coef = np.zeros((len(vert), 6))
+    np.add.at(normal_coef, inv, coef_u)
+    normal_coef /= per_vert[:, None]
+    x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
+    if x is not None:
+        lam[cu] = (x / per_vert)[inv]
+    else:  # 2) with friction
+        x = _exact_nnls(coef_u.T, rhs, tol, nnls)
+        if x is None:
+            return False
+        lam[cu] = x
+    owner[cu] = pos
+    return True
+
+
+def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | None:
+    """``x >= 0`` with ``||A x - b|| <= tol`` found by NNLS, or None.  The residual is
+    recomputed: scipy's reported one can be 0 for a solve that stopped early."""
+    x, _ = nnls(A, b, maxiter=200 * max(A.shape[1], 10))
+    return x if np.linalg.norm(A @ x - b) <= tol else None
+
+
+def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side_all, starts,
+                     tol, nnls) -> bool:
+    """Balance the bodies of ``unit`` jointly (forces between them are unknowns too)."""
+    local = {r: k for k, r in enumerate(unit)}
+    c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
+    sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
+    blk = np.concatenate([np.full(starts[r + 1] - starts[r], local[r]) for r in unit])
+    keep = usable[c]
+    c, sd, blk = c[keep], sd[keep], blk[keep]
+    other = system.col_row[c, 1 - sd]
+    known = (other >= 0) & done[np.maximum(other, 0)]
+    coef = system.blocks[c, sd]  # (k, 6) on the body of block blk
+    n_rows = 6 * len(unit)
+    rhs = np.concatenate([system.b[6 * r:6 * r + 6] for r in unit])
+    kn = np.nonzero(known)[0]
+    np.subtract.at(rhs, (6 * blk[kn])[:, None] + np.arange(6),
+                   coef[kn] * lam[c[kn]][:, None])
+    un = np.nonzero(~known)[0]
+    if len(un) == 0:
+        return bool(np.linalg.norm(rhs) <= tol)
+    cu, col_idx = np.unique(c[un], return_inverse=True)  # internal columns appear twice
+    A = np.zeros((n_rows, len(cu)))
+    np.add.at(A, ((6 * blk[un])[:, None] + np.arange(6), col_idx[:, None]), coef[un])
+    # 1) normal forces only, 2) with friction (as for one body)
+    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    per_vert = np.bincount(inv, minlength=len(vert))
+    An = np.zeros((n_rows, len(vert)))
+    np.add.at(An, (slice(None), inv), A)
+    An /= per_vert
+    x = _exact_nnls(An, rhs, tol, nnls)
+    if x is not None:
+        lam[cu] = (x / per_vert)[inv]
+    else:
+        x = _exact_nnls(A, rhs, tol, nnls)
+        if x is None:
+            return False
+        lam[cu] = x
+    owner[cu] = pos
+    return True
 
 
 def _component_digest(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndarray) -> bytes:
