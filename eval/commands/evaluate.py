@@ -46,6 +46,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
     parser.add_argument("--quick", action="store_true", help="a small, fast version (CI)")
+    reg = parser.add_argument_group("regression suite only")
+    reg.add_argument("--only", nargs="+", default=None, metavar="CASE",
+                     help="check only these cases (names in eval/suites/regression.py)")
+    reg.add_argument("--expected", type=Path, default=None, metavar="FILE",
+                     help="expectation file (default: eval/suites/regression_expected.json)")
+    reg.add_argument("--update", action="store_true",
+                     help="rewrite the expectation file with the measured figures (exit 0)")
 
 
 def package_versions() -> dict[str, str | None]:
@@ -72,6 +79,12 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
     cmd += ["--dask", args.dask] if args.dask else ["--workers", str(args.workers)]
     if args.quick:
         cmd.append("--quick")
+    if getattr(args, "only", None):
+        cmd += ["--only", *args.only]
+    if getattr(args, "expected", None) is not None:
+        cmd += ["--expected", str(args.expected)]
+    if getattr(args, "update", False):
+        cmd.append("--update")
     return cmd
 
 
@@ -90,6 +103,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--n: must be at least 1, got {args.n}")
     if args.seed < 0:
         raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
+    if used and args.suite != "regression":
+        raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")
     if args.out.exists() and not args.out.is_dir():
         raise InputError(f"--out {args.out}: exists and is not a folder")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -21,10 +21,9 @@ Outputs under ``--out``: ``regression.md`` / ``.csv`` (measured vs stored per ca
 ``regression.json`` (the measured figures, in the expectation file's format),
 ``tasks/``.
 
-``unseen eval regression --out DIR`` checks every case.  The suite-specific options
-(``unseen eval`` has no room for them) are available through this module::
-
-    python -m eval.suites.regression --out DIR [--only CASE ...] [--expected FILE] [--update]
+``unseen eval regression --out DIR [--only CASE ...] [--expected FILE] [--update]``
+checks every case (or those named); the same options are available through this
+module as ``python -m eval.suites.regression``.
 
 ``--update`` rewrites the expectation file with the measured figures (exit 0).
 ``--quick`` checks the first :data:`QUICK_CASES` cases, ``--n N`` the first N.

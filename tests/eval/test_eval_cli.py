@@ -65,10 +65,36 @@ def test_eval_unknown_suite_lists_suites(fake_suite, tmp_path, capsys):
     assert not (tmp_path / "x").exists()
 
 
-@pytest.mark.parametrize("extra", [["--workers", "0"], ["--n", "0"], ["--seed", "-1"]])
+@pytest.mark.parametrize("extra", [["--workers", "0"], ["--n", "0"], ["--seed", "-1"],
+                                   ["--update"], ["--only", "stack-1000"]])
 def test_eval_bad_options_exit_2(fake_suite, tmp_path, capsys, extra):
     assert main(["eval", "fake", "--out", str(tmp_path / "x"), *extra]) == 2
     assert capsys.readouterr().err.startswith("unseen eval: error:")
+
+
+def test_eval_regression_unknown_case_exit_2(tmp_path, capsys):
+    assert main(["eval", "regression", "--out", str(tmp_path / "r"), "--only", "nosuch"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "--only: unknown case(s) nosuch" in err and "stack-1000" in err and "\n" not in err
+
+
+def test_eval_regression_update_through_the_cli(tmp_path, capsys):
+    exp = tmp_path / "expected.json"
+    out = tmp_path / "r"
+    assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
+                 "--expected", str(exp), "--update"]) == 0
+    stored = json.loads(exp.read_text())["cases"]
+    assert set(stored) == {"stack-1000"}
+    cmd = json.loads((out / "command.json").read_text())["command"]
+    assert cmd.endswith(f"--only stack-1000 --expected {exp} --update")
+    # checked against what it just wrote: no regression; a flipped figure: exit 1
+    assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
+                 "--expected", str(exp)]) == 0
+    stored["stack-1000"]["stands"] = 2
+    exp.write_text(json.dumps({"cases": stored}))
+    assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
+                 "--expected", str(exp)]) == 1
+    assert "REGRESSED" in capsys.readouterr().out
 
 
 def test_workers_and_dask_are_exclusive(tmp_path):
