@@ -82,12 +82,13 @@ def settle_stands(arr, engine: str = "mujoco") -> bool:
 
 def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                noise: str = "kinect", budget: float = BUDGET, options: dict | None = None,
-               engine: str | None = None) -> dict:
+               engine: str | None = None, engines: tuple | list | None = None) -> dict:
     """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
 
     Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
     ``n_gt``/``n_gt_contacts``, ``n_initial`` and :func:`summary_of`; with ``engine``
-    also ``stands`` (the result settled in that engine).
+    also ``stands`` (the result settled in that engine), with ``engines`` also
+    ``stands_in`` (engine -> whether it stands there).
     """
     from eval.run_full import solve
     from eval.suites._common import score_record
@@ -105,6 +106,8 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                **summary_of(result.arrangement, result.report))
     if engine:
         rec["stands"] = settle_stands(result.arrangement, engine)
+    if engines:
+        rec["stands_in"] = {e: settle_stands(result.arrangement, e) for e in engines}
     return rec
 
 
