@@ -108,6 +108,9 @@ def _option_cost(e: Edge, o: Option) -> tuple[int, float]:
 class _Group:
     """One independent group: its cuboids, edges and caches."""
 
+    #: greedy pass 1 tests blocks of edges at once (same answer as one by one, fewer checks)
+    BLOCK_RELAX = True
+
     def __init__(self, arr: Arrangement, boxes: list[int], edges: list[Edge], mu: float,
                  threshold: float | None, stats: SearchStats) -> None:
         self.full = arr
@@ -298,6 +301,10 @@ class _Group:
         Pass 1 (fewest fixed): every edge in turn tries its cheapest ``touch`` option (or
         ``none`` for a pair already fused by nothing); one that keeps the arrangement
         stable is kept.  Extensions stay in place, so support is not thrown away early.
+        First all edges at once, then (group testing) halves of a failing block: turning
+        fixed into touch with the same extensions can only lose stability, so a block
+        that stands relaxed together is exactly what one by one would give, and only the
+        blocks that fail are split down to single edges.
         Pass 2 (least volume): every edge in turn tries the options of the same type
         count with less volume (``none`` included).
         """
@@ -337,10 +344,45 @@ class _Group:
         if relax and self.evaluate(tuple(bulk))[0]:
             current = bulk
         else:
-            for level, touch in relax.items():
-                for i in touch:
-                    if attempt(level, i):
-                        break
+            def keeps(level: int) -> bool:
+                opts = self.options[level]
+                return opts[relax[level][0]].extensions == opts[current[level]].extensions
+
+            def block(levels: list[int], known_bad: bool) -> bool:
+                """Relax ``levels`` in order as one by one would; True when all of them
+                took their first touch option."""
+                nonlocal current
+                if len(levels) > 1 and not known_bad and all(keeps(lv) for lv in levels):
+                    if time.perf_counter() > deadline:
+                        self.stats.budget_spent = True
+                        return False
+                    trial = list(current)
+                    for lv in levels:
+                        trial[lv] = relax[lv][0]
+                    self.stats.nodes += 1
+                    if self.evaluate(tuple(trial))[0]:
+                        current = trial
+                        return True
+                    self.stats.pruned_unstable += 1
+                    known_bad = True
+                if len(levels) == 1:
+                    for i in relax[levels[0]]:
+                        if attempt(levels[0], i):
+                            return i == relax[levels[0]][0]
+                    return False
+                half = len(levels) // 2
+                first = block(levels[:half], False)
+                # the whole failed and its first half went through: the rest fails as a block
+                second = block(levels[half:], known_bad and first)
+                return first and second
+
+            if self.BLOCK_RELAX:
+                block(list(relax), True)
+            else:
+                for level, touch in relax.items():
+                    for i in touch:
+                        if attempt(level, i):
+                            break
         # pass 2, in bulk first: extensions whose contact carries no load in the current
         # equilibrium are dropped together (verified by one evaluation)
         ok, res = self.evaluate(tuple(current))

@@ -163,3 +163,23 @@ def test_refine_evaluator_equals_a_plain_check_when_the_energy_is_not_zero():
         e = energy(arr)[0]
         assert e == _energy(arr, 0.7)[0]
         assert (e > 1e-5) == (0.6 + dx > 0.5)  # tips exactly when the overhang passes half
+
+
+def test_block_relaxation_gives_the_one_by_one_answer_with_fewer_checks(monkeypatch):
+    from eval.benchmarks.search import occluded, rooms
+    from pipeline.extend import candidate_edges
+    from pipeline.imagine import repair_overlaps
+    from pipeline.search import _Group, search
+
+    arr, _ = repair_overlaps(occluded(rooms(30, seed=1001), np.random.default_rng(1)))
+    edges = candidate_edges(arr)
+    out = {}
+    for block in (True, False):
+        monkeypatch.setattr(_Group, "BLOCK_RELAX", block)
+        out[block] = search(arr, edges, budget=60.0)
+    a, b = out[True], out[False]
+    assert a.choices == b.choices and a.n_fixed == b.n_fixed and a.stable and b.stable
+    assert a.added_volume == b.added_volume
+    assert [(c.a, c.b, c.type) for c in a.arrangement.contacts] == \
+        [(c.a, c.b, c.type) for c in b.arrangement.contacts]
+    assert a.stats.stability_checks < b.stats.stability_checks  # the blocks were used
