@@ -95,6 +95,19 @@ def normal_yaw(normals: np.ndarray, min_count: int = 30,
     return float((np.angle(z) / 4.0) % (np.pi / 2))
 
 
+#: A tilted frame from RANSAC planes must explain this much larger a share of the
+#: normals than the upright frame does to be believed (small noisy parts fool RANSAC).
+SLANT_MARGIN = 0.1
+
+
+def aligned_share(normals: np.ndarray, R: np.ndarray, tol_deg: float = 15.0) -> float:
+    """Share of ``normals (n, 3)`` within ``tol_deg`` of one of the axes of frame ``R``."""
+    n = np.asarray(normals)
+    if not len(n):
+        return 0.0
+    return float((np.abs(n @ R).max(axis=1) >= np.cos(np.radians(tol_deg))).mean())
+
+
 def yaw_rotation(a: float) -> np.ndarray:
     """(3, 3) rotation about z by ``a`` radians."""
     c, s = np.cos(a), np.sin(a)
@@ -435,6 +448,10 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     cell = max(cell, 3.0 * point_spacing(points))
     thr = plane_threshold if plane_threshold is not None else 1.0 * cell
     R = slant_frame(dominant_planes(points, thr, rng))
+    if R is not None and normals is not None and (
+            aligned_share(normals, upright_rotation(points, normals))
+            >= aligned_share(normals, R) - SLANT_MARGIN):
+        R = None  # the surface normals fit an upright frame as well: the planes were noise
     if R is not None:
         local = points @ R
         if normals is not None:

@@ -51,10 +51,11 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
 
     Two overlapping boxes of the same object with the same axes are one part seen as
     two slabs: they merge into the box that bounds both (unless the segmentation named
-    them as different parts, ``extra["instance"]``: a shelf's board and its side stay two).  Otherwise both boxes give
-    way by half the overlap along the axis that separates them best (each keeps at
-    least half of its extent there).  A box reaching below a support plane loses the
-    part below it.
+    them as different parts, ``extra["instance"]``: a shelf's board and its side stay
+    two).  Otherwise the box that loses the smallest share of its extent to clear the
+    other gives way (a tall box whose noisy bottom reaches into the plank it stands on,
+    not the plank); when each would lose more than half, both give way by half the
+    overlap.  A box reaching below a support plane loses the part below it.
     """
     repaired = 0
     for _ in range(max_rounds):
@@ -78,8 +79,15 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                     and _same_part(ci, cj)):
                 cubs[i], cubs[j] = _merge(ci, cj), None
             else:
-                cubs[i] = _shrink_against(ci, cj, share=0.5)
-                cubs[j] = _shrink_against(cj, ci, share=0.5)
+                ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
+                if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
+                    if ri <= rj:
+                        cubs[i] = _shrink_against(ci, cj)
+                    else:
+                        cubs[j] = _shrink_against(cj, ci)
+                else:
+                    cubs[i] = _shrink_against(ci, cj, share=0.5)
+                    cubs[j] = _shrink_against(cj, ci, share=0.5)
             repaired += 1
         arr = arr.with_(cuboids=tuple(c for c in cubs if c is not None))
     return arr, repaired
@@ -172,9 +180,8 @@ def _merge(a: Cuboid, b: Cuboid) -> Cuboid:
     return Cuboid(a.id, center, a.rotation, hi - lo, a.density, a.object, obs, extra)
 
 
-def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0) -> Cuboid:
-    """Move the face of ``c`` that overlaps ``other`` back by ``share`` of the overlap."""
-    tol = float(pair_tolerance(c.size[None], other.size[None])[0])
+def _overlap_face(c: Cuboid, other: Cuboid) -> tuple[float, int, int] | None:
+    """(overlap, axis, side) of the face of ``c`` reaching least far into ``other``."""
     best = None
     for ax in range(3):
         for side in (0, 1):
@@ -183,7 +190,21 @@ def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0) -> Cuboid:
             proj = other.corners() @ u
             overlap = face - proj.min()  # how far c reaches into the other along u
             if overlap > 0 and (best is None or overlap < best[0]):
-                best = (overlap, ax, side)
+                best = (float(overlap), ax, side)
+    return best
+
+
+def _relative_overlap(c: Cuboid, other: Cuboid) -> float:
+    """The share of its extent ``c`` would lose to clear ``other`` (inf when it cannot)."""
+    best = _overlap_face(c, other)
+    return float("inf") if best is None else best[0] / float(c.size[best[1]])
+
+
+def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0) -> Cuboid:
+    """Move the face of ``c`` that overlaps ``other`` back by ``share`` of the overlap
+    (at most half of ``c``'s extent there)."""
+    tol = float(pair_tolerance(c.size[None], other.size[None])[0])
+    best = _overlap_face(c, other)
     if best is None:
         return c
     overlap, ax, side = best
