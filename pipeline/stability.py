@@ -435,7 +435,7 @@ def _body_columns(system: EquilibriumSystem) -> tuple[np.ndarray, np.ndarray, np
 def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
               grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-              max_cluster: int | None = None) -> np.ndarray | None:
+              max_cluster: int | None = None, memo: dict | None = None) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -463,6 +463,10 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     (its columns act only on its own bodies and on anchored ones, so its certificate is
     independent of the rest); the returned vector is then only meaningful on the
     component's columns.  ``grouping`` is :func:`_body_columns` of the system, reused.
+    ``memo`` (a dict kept by the caller) maps a digest of one body's problem (its unknown
+    columns' coefficients, their grouping into vertices and its right-hand side) to the
+    NNLS answer, so the bodies that a change elsewhere leaves alone are not solved again
+    (exact: equal problems have equal answers).
     """
     from scipy.optimize import nnls
 
@@ -482,7 +486,7 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
         unit = units[i]
         if len(unit) == 1:
             ok = _balance_body(system, unit[0], lam, owner, i, done, usable, cols_all, side_all,
-                               starts, tol, nnls)
+                               starts, tol, nnls, memo)
         else:
             ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
                                   starts, tol, nnls)
@@ -528,10 +532,12 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
 LOAD_PATH_MAX_CLUSTER = 12
 #: and the most merges it tries
 LOAD_PATH_MAX_MERGES = 2
+#: body problems remembered by :func:`load_path` (the memo is cleared beyond this)
+LOAD_PATH_MEMO_MAX = 20000
 
 
 def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, starts, tol,
-                  nnls) -> bool:
+                  nnls, memo: dict | None = None) -> bool:
     """Balance free body ``r`` with its contacts to bodies not yet done (see load_path)."""
     c = cols_all[starts[r]:starts[r + 1]]
     sd = side_all[starts[r]:starts[r + 1]]
@@ -547,18 +553,37 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
     # 1) normal forces only (the mean of a vertex's pyramid edges is its normal): passes
     #    no friction down, so lower bodies are not loaded sideways by arbitrary choices
     vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    key = None
+    if memo is not None:
+        import hashlib
+
+        h = hashlib.blake2b(digest_size=20)
+        for part in (coef_u, inv, rhs, np.float64(tol)):
+            h.update(np.ascontiguousarray(part).tobytes())
+        key = h.digest()
+        hit = memo.get(key, memo)
+        if hit is not memo:
+            if hit is None:
+                return False
+            lam[cu] = hit
+            owner[cu] = pos
+            return True
     per_vert = np.bincount(inv, minlength=len(vert))
     normal_coef = np.zeros((len(vert), 6))
     np.add.at(normal_coef, inv, coef_u)
     normal_coef /= per_vert[:, None]
     x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
     if x is not None:
-        lam[cu] = (x / per_vert)[inv]
+        x = (x / per_vert)[inv]
     else:  # 2) with friction
         x = _exact_nnls(coef_u.T, rhs, tol, nnls)
-        if x is None:
-            return False
-        lam[cu] = x
+    if key is not None:
+        if len(memo) >= LOAD_PATH_MEMO_MAX:
+            memo.clear()
+        memo[key] = x
+    if x is None:
+        return False
+    lam[cu] = x
     owner[cu] = pos
     return True
 
@@ -684,7 +709,9 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
         if backend == "auto" and system.blocks is not None:
             if grouping is None:
                 grouping = _body_columns(system)
-            x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping)
+            memo = None if cache is None else cache.setdefault("load_path_memo", {})
+            x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping,
+                          memo=memo)
             if x is not None:
                 x, how = x[cols], "load-path"
         if how is None:

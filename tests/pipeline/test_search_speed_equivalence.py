@@ -183,3 +183,21 @@ def test_block_relaxation_gives_the_one_by_one_answer_with_fewer_checks(monkeypa
     assert [(c.a, c.b, c.type) for c in a.arrangement.contacts] == \
         [(c.a, c.b, c.type) for c in b.arrangement.contacts]
     assert a.stats.stability_checks < b.stats.stability_checks  # the blocks were used
+
+
+def test_load_path_memo_returns_what_a_fresh_pass_returns():
+    rng = np.random.default_rng(9)
+    memo: dict = {}
+    hits_possible = 0
+    for _ in range(12):
+        arr = _random_scene(rng)
+        for system in _systems(arr):
+            for rows, _cols in _components(system):
+                fresh = load_path(system, bodies=rows[::6] // 6)
+                for _rep in range(2):  # the second pass is answered from the memo
+                    memo_lam = load_path(system, bodies=rows[::6] // 6, memo=memo)
+                    assert (fresh is None) == (memo_lam is None)
+                    if fresh is not None:
+                        np.testing.assert_array_equal(memo_lam, fresh)
+                hits_possible += 1
+    assert hits_possible > 20 and len(memo) > 0
