@@ -94,23 +94,22 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
 
 
 #: A box is "seen face-on" when its extent along a horizontal axis within 45 degrees of
-#: the viewing direction is below this fraction of its largest extent ...
-THIN_FRACTION = 0.2
-#: ... and then its hidden back face is pushed to give it this fraction of that extent.
-THIN_DEPTH = 0.5
+#: the viewing direction is below this fraction of its other horizontal extent; it is
+#: then given depth up to that other extent (a square footprint: a leg, a pillar, a box).
+THIN_FRACTION = 0.5
 
 
 def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 0.0,
                       steps: int = 4) -> tuple[Arrangement, list[str]]:
     """Give depth to boxes the sensor saw only face-on.
 
-    A part seen from the front (a book's spine, a pillar's face) is fitted as a slab a
-    few millimetres deep along the viewing direction: its depth is simply not in the
-    data, and as a sliver it can stand only glued.  Such a box (horizontal extent along
-    an axis within 45 degrees of the first view's horizontal direction below
-    :data:`THIN_FRACTION` of its largest extent) has its back face pushed away from the
-    camera towards :data:`THIN_DEPTH` of that extent, in ``steps`` increments, as far as
-    no view saw the added space empty and no other box is entered.  Returns the
+    A part seen from the front (a leg, a pillar, a box behind a table top) is fitted as
+    a slab a few millimetres deep along the viewing direction: its depth is simply not
+    in the data, and as a sliver it can stand only glued.  Such a box (horizontal extent
+    along an axis within 45 degrees of the first view's horizontal direction below
+    :data:`THIN_FRACTION` of its other horizontal extent) has its back face pushed away
+    from the camera towards that other extent, in ``steps`` increments, as far as no
+    view saw the added space empty and no other box or support is entered.  Returns the
     arrangement and the ids deepened.
     """
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
@@ -126,15 +125,15 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
         if np.linalg.norm(look) < 1e-9:
             continue
         look /= np.linalg.norm(look)
-        big = float(c.size.max())
-        for axis in range(3):
+        horizontal = [a for a in range(3) if abs(c.rotation[2, a]) <= 0.5]
+        for axis in horizontal:
             along = float(c.rotation[:, axis] @ look)
-            if (abs(c.rotation[2, axis]) > 0.5 or abs(along) < np.cos(np.radians(45))
-                    or c.size[axis] >= THIN_FRACTION * big):
+            width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
+            if abs(along) < np.cos(np.radians(45)) or c.size[axis] >= THIN_FRACTION * width:
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            full = THIN_DEPTH * big - float(c.size[axis])
+            full = width - float(c.size[axis])
             best = None
             for j in range(1, steps + 1):
                 length = full * j / steps
