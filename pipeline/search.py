@@ -172,7 +172,10 @@ class _Group:
         """(stable, result-or-status) of an assignment, cached.
 
         With ``quick``, a box that touches nothing (its body has no contact force, so its
-        weight is unbalanced: E >= 1) answers "floating" without the equilibrium solve.
+        weight is unbalanced: E >= 1) answers "floating" without the equilibrium solve, and
+        an unstable answer may come from a one-body bound instead of a solve
+        (``check_stability(verdict_only=True)``): the verdict is exact, the energy of an
+        unstable result is not (only the root's unstable result is reported).
         """
         hit = self.stab_cache.get(assignment)
         if hit is not None:
@@ -190,7 +193,8 @@ class _Group:
             arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
             try:
                 res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
-                                      tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache)
+                                      tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache,
+                                      verdict_only=quick)
             except InputError:  # a fixed pair that does not touch in this geometry
                 out = (False, "detached")
             else:

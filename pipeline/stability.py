@@ -665,8 +665,8 @@ def _component_digest(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndar
 def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                  column_mask: np.ndarray | None = None, *,
                  components: list[tuple[np.ndarray, np.ndarray]] | None = None,
-                 cache: dict | None = None, digests: dict | None = None
-                 ) -> tuple[np.ndarray, str]:
+                 cache: dict | None = None, digests: dict | None = None,
+                 unstable_bound: float | None = None) -> tuple[np.ndarray, str]:
     """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
 
     Independent components (free bodies connected through free-free contacts, see
@@ -678,6 +678,12 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     changes one box re-solves only the components that box touches.  ``digests`` maps
     ``id(cols)`` of each passed component to its :func:`_component_digest` (shared by
     several right-hand sides); it is only used when ``column_mask`` is None.
+
+    ``unstable_bound`` (verdicts only): a component whose load path fails and one of whose
+    bodies cannot balance to within ``unstable_bound`` even with every one of its contacts
+    free (:func:`_body_cannot_balance`, a lower bound on E) is not solved: its forces are
+    left at zero (backend "bound"), so the E computed from the result is >= the bound too
+    but is not the minimum.  Only the verdict of such a result is meaningful.
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
@@ -701,6 +707,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             h.update(np.ascontiguousarray(system.b[rows]).tobytes())
             key = h.digest()
             hit = cache.get(key)
+            if hit is None and unstable_bound is not None:
+                hit = cache.get(key + b"|bound")
             if hit is not None:
                 lam[cols] = hit[0]
                 used.add(hit[1])
@@ -714,6 +722,14 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                           memo=memo)
             if x is not None:
                 x, how = x[cols], "load-path"
+            elif unstable_bound is not None and _body_cannot_balance(
+                    system, rows[::6] // 6, column_mask, grouping, unstable_bound):
+                x, how = np.zeros(len(cols)), "bound"
+                if key is not None:
+                    cache[key + b"|bound"] = (x, how)
+                used.add(how)
+                lam[cols] = x
+                continue
         if how is None:
             if dense is None and Dr is None:
                 D = system.D
@@ -729,6 +745,41 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     if used == {"load-path"}:
         return lam, "load-path"
     return lam, "+".join(sorted(used)) or "none"
+
+
+def _body_cannot_balance(system: EquilibriumSystem, bodies: np.ndarray,
+                         column_mask: np.ndarray | None, grouping, bound: float) -> bool:
+    """True when some body's equilibrium misses by at least ``bound`` (squared, scaled)
+    even with every one of its contacts free: a proof that E >= ``bound``.
+
+    Body ``g``'s rows involve only its own columns, so for any ``lambda >= 0`` its share
+    of E is at least ``min_{x >= 0} ||D_g x - b_g||^2`` (a 6-row NNLS).  The NNLS answer
+    is only trusted when it satisfies the optimality conditions (gradient >= 0, zero
+    where ``x`` > 0, up to round-off) and beats the bound ten times over.
+    """
+    from scipy.optimize import nnls
+
+    cols_all, side_all, starts = grouping
+    for r in bodies:
+        c = cols_all[starts[r]:starts[r + 1]]
+        sd = side_all[starts[r]:starts[r + 1]]
+        if column_mask is not None:
+            keep = column_mask[c]
+            c, sd = c[keep], sd[keep]
+        b = system.b[6 * r:6 * r + 6]
+        if len(c) == 0:
+            if b @ b >= 10 * bound:
+                return True
+            continue
+        A = system.blocks[c, sd].T  # (6, k)
+        x, _ = nnls(A, b, maxiter=200 * max(len(c), 10))
+        res = A @ x - b
+        g = A.T @ res
+        slack = 1e-9 * (1.0 + np.abs(A).max() * (np.linalg.norm(b) + 1.0))
+        optimal = g.min() >= -slack and np.all(np.abs(g[x > 0]) <= slack)
+        if optimal and res @ res >= 10 * bound:
+            return True
+    return False
 
 
 def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndarray, str]:
@@ -759,7 +810,8 @@ def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndar
 def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None,
                     backend: str = "auto", side_friction: bool = False,
                     contacts: ContactSet | None = None, tilt_deg: float = 0.0,
-                    solve_cache: dict | None = None) -> StabilityResult:
+                    solve_cache: dict | None = None, verdict_only: bool = False
+                    ) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -783,6 +835,11 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         Solutions of independent components by digest of their sub-problem, kept by the
         caller across calls (see :func:`solve_energy`); results are identical with or
         without it.
+    verdict_only : bool
+        Only ``stable`` is needed (the search's nodes): a component that a single body
+        proves unstable (its miss with every contact free already exceeds the threshold,
+        ``solve_energy(unstable_bound=...)``) is not solved.  ``stable`` is exact; when it
+        is False, ``energy`` and the per-body values are then not the minimum.
 
     Returns
     -------
@@ -805,8 +862,9 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
     comps = _components(system)
     digests = None if solve_cache is None else \
         {id(cols): _component_digest(system, rows, cols) for rows, cols in comps}
+    bound = threshold if verdict_only else None
     lam, used = solve_energy(system, backend, components=comps, cache=solve_cache,
-                             digests=digests)
+                             digests=digests, unstable_bound=bound)
     result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg
@@ -821,7 +879,7 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             b[6 * np.arange(F) + 2] = np.cos(t)
             tilted = replace(system, b=b)
             lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
-                                         digests=digests)
+                                         digests=digests, unstable_bound=bound)
             if _energy(bodies, tilted, lam_t) < threshold:
                 continue  # (the full result is only built when it is the answer)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)

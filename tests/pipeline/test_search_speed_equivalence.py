@@ -201,3 +201,32 @@ def test_load_path_memo_returns_what_a_fresh_pass_returns():
                         np.testing.assert_array_equal(memo_lam, fresh)
                 hits_possible += 1
     assert hits_possible > 20 and len(memo) > 0
+
+
+def test_verdict_only_gives_the_same_verdict_and_skips_solves_it_can_prove():
+    import pipeline.stability as stability
+
+    rng = np.random.default_rng(13)
+    proved = 0
+    calls = []
+    real = stability._body_cannot_balance
+
+    def spy(*args):
+        calls.append(real(*args))
+        return calls[-1]
+
+    stability._body_cannot_balance = spy
+    try:
+        for _ in range(30):
+            arr = _random_scene(rng)
+            full = check_stability(arr, tilt_deg=2.0)
+            fast = check_stability(arr, tilt_deg=2.0, verdict_only=True)
+            assert fast.stable == full.stable
+            if fast.stable:  # a stable answer is the full one
+                assert fast.energy == full.energy
+            else:
+                assert fast.energy >= fast.threshold
+    finally:
+        stability._body_cannot_balance = real
+    proved = sum(calls)
+    assert proved > 0  # the one-body bound was used
