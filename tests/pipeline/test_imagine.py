@@ -104,3 +104,75 @@ def test_a_multi_view_scene_folder_loads_fused_with_its_frames(tmp_path):
     (made.path / "scan" / "view1" / "camera_pose.json").unlink()
     with pytest.raises(InputError, match="view1: camera_pose.json missing"):
         load_scan(made.path)
+
+
+def _depth_of_boxes(boxes, T_world_cam, intr, far=4.0):
+    """Exact depth image (metres along z) of upright boxes and a ground plane z = 0,
+    by ray-slab intersection (an independent renderer for the visibility test)."""
+    from pipeline.camera import backproject
+
+    ones = np.ones((intr.height, intr.width))
+    rays_cam, _ = backproject(ones, intr)  # z = 1 along each pixel
+    dirs = rays_cam @ T_world_cam[:3, :3].T
+    eye = T_world_cam[:3, 3]
+    t_best = np.full(len(dirs), np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_ground = -eye[2] / dirs[:, 2]
+        t_best = np.where(t_ground > 0, t_ground, t_best)
+        for c in boxes:
+            o = (eye - c.center) @ c.rotation
+            d = dirs @ c.rotation
+            t1 = (-c.size / 2 - o) / d
+            t2 = (c.size / 2 - o) / d
+            tn = np.nanmax(np.minimum(t1, t2), axis=1)
+            tf = np.nanmin(np.maximum(t1, t2), axis=1)
+            hit = (tn <= tf) & (tf > 0)
+            t_best = np.where(hit & (tn < t_best), tn, t_best)
+    depth = np.where(np.isfinite(t_best) & (t_best < far), t_best, 0.0)  # z = t (rays have z 1)
+    return depth.reshape(intr.height, intr.width)
+
+
+def test_a_leg_seen_face_on_gets_depth_behind_it_up_to_its_width():
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.model import Support
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 1.0), (0.0, 0.0, 0.35))
+    true_leg = box("leg", (0, 0.025, 0.35), (0.05, 0.05, 0.7))
+    views = [DepthView(_depth_of_boxes([true_leg], T, intr), intr, T)]
+    seen = box("leg", (0, 0.004, 0.35), (0.05, 0.008, 0.7))  # only its front, 8 mm deep
+    out, ids = deepen_thin_boxes(Arrangement((seen,), (ground(),)), views)
+    assert ids == ["leg"]
+    leg = out.cuboids[0]
+    np.testing.assert_allclose(leg.size, [0.05, 0.05, 0.7], atol=1e-9)
+    assert leg.center[1] == pytest.approx(0.025)  # grown away from the camera
+    # a wall 2 cm behind its front face stops it before the wall
+    wall = Support("wall:0", (0, 0.02, 0), (0, -1, 0))
+    out, ids = deepen_thin_boxes(Arrangement((seen,), (ground(), wall)), views)
+    assert out.cuboids[0].center[1] + out.cuboids[0].size[1] / 2 <= 0.02 + 1e-9
+    # a box already as deep as it is wide, or seen from the side, is left alone
+    side = box("leg", (0, 0.025, 0.35), (0.008, 0.05, 0.7))
+    out, ids = deepen_thin_boxes(Arrangement((side,), (ground(),)), views)
+    assert ids == [] and out.cuboids[0] is side
+
+
+def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
+    # from above, the floor behind a thin panel is seen over its top: most of the space
+    # a panel as deep as it is wide would fill was seen empty
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -1.5, 2.5), (0.0, 0.0, 0.35))
+    panel = box("panel", (0, 0.004, 0.35), (0.3, 0.008, 0.7))
+    views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
+    out, _ = deepen_thin_boxes(Arrangement((panel,), (ground(),)), views)
+    assert out.cuboids[0].size[1] < 0.3 / 2
+    # the same panel seen from straight ahead hides the space behind it: deepened
+    T = look_at((0.0, -2.0, 0.35), (0.0, 0.0, 0.35))
+    views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
+    out, ids = deepen_thin_boxes(Arrangement((panel,), (ground(),)), views)
+    assert ids == ["panel"] and out.cuboids[0].size[1] == pytest.approx(0.3)
