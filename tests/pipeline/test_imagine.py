@@ -170,7 +170,7 @@ def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
     panel = box("panel", (0, 0.004, 0.35), (0.3, 0.008, 0.7))
     views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
     out, _ = deepen_thin_boxes(Arrangement((panel,), (ground(),)), views)
-    assert out.cuboids[0].size[1] < 0.3 / 2
+    assert out.cuboids[0].size[1] <= 0.6 * 0.3  # two of the four steps at most
     # the same panel seen from straight ahead hides the space behind it: deepened
     T = look_at((0.0, -2.0, 0.35), (0.0, 0.0, 0.35))
     views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
