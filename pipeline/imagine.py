@@ -17,7 +17,10 @@
 5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
-dict with counts, statistics and timings per step.
+dict with counts, statistics and timings per step.  ``budget`` seconds bound the search,
+the second search after boxes are set aside and the glue relaxation (whatever is found
+by then is kept); the final refinement gets what is left, at least a tenth of it.  Below
+the budget the result depends only on the input and the seed.
 """
 
 from __future__ import annotations
@@ -304,7 +307,8 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
 
     and the first variant under which the group stands with gravity tilted by
     ``tilt_deg`` (a margin) is kept.  Joints within one object (a table's legs) are
-    left: they are what holds an object together.  No trial starts after ``deadline``.
+    left: they are what holds an object together.  No trial starts, and no refinement
+    step, after ``deadline``.
 
     Returns (arrangement, joints tried, joints relaxed); the stability summary is left
     for the caller to recompute.
@@ -347,7 +351,8 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
                 break
         if found is None and len(group) <= max_group:
             try:
-                refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt).arrangement
+                refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt,
+                                 deadline=deadline).arrangement
             except InputError:
                 refined = None
             if refined is not None and stands(refined):
@@ -527,7 +532,9 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         aside += [c for c in arr.cuboids if c.id in bad]
         arr = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id not in bad))
         edges, _ = prune_by_visibility(arr, candidate_edges(arr), views, margin)
-        left = max(budget - (time.perf_counter() - t), 0.25 * budget)
+        left = budget - (time.perf_counter() - t0)
+        if left < 0.1 * budget:  # no time for another search: keep the best effort
+            break
         result = search(arr, edges, budget=left, mu=mu, threshold=threshold)
     timings["search"] = time.perf_counter() - t
 
@@ -551,7 +558,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
     t = time.perf_counter()
     final, relax_tried, relaxed = relax_fixed(final, mu=mu, threshold=threshold,
-                                              deadline=t0 + 1.5 * budget, views=views,
+                                              deadline=t0 + budget, views=views,
                                               margin=margin)
     if relaxed:
         from .search import finalize
@@ -563,7 +570,8 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     t = time.perf_counter()
     refined = None
     if final.stability is not None and final.stability.energy > (threshold or 1e-5) / 100:
-        refined = refine(final, mu=mu, max_steps=refine_steps)
+        refined = refine(final, mu=mu, max_steps=refine_steps,
+                         deadline=max(t0 + budget, time.perf_counter() + 0.1 * budget))
         from .search import finalize
 
         fixed = [c for c in refined.arrangement.contacts if c.type == "fixed"]

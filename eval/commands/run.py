@@ -57,7 +57,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="full (default): initial cuboids, then extension, contact types and "
                         "refinement; initial: section 4.1 only")
     p.add_argument("--budget", type=float, default=10.0,
-                   help="seconds for the contact search (the best found so far is returned)")
+                   help="seconds for imagining the unseen: the contact search, searching again "
+                        "without boxes nothing can hold up, and dropping glue joints (the best "
+                        "found so far is kept); refinement then gets what is left, at least a "
+                        "tenth of it")
     p.add_argument("--mu", type=float, default=0.7, help="friction coefficient (default 0.7)")
     p.add_argument("--check-engines", action="store_true",
                    help="settle the result in MuJoCo and PyBullet and report their verdicts")
