@@ -172,7 +172,9 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     while steps < max_steps and np.isfinite(E) and E > threshold / 100:
         if deadline is not None and time.perf_counter() > deadline:
             break
-        hot = [k for k, b in enumerate(res.bodies) if b.energy > 0]
+        # cuboids of bodies that carry energy worth lowering (round-off residues of
+        # 1e-30 do not: each hot cuboid costs twelve evaluations)
+        hot = [k for k, b in enumerate(res.bodies) if b.energy > threshold / 100]
         best = None
         for k in hot:
             if best is not None and deadline is not None and time.perf_counter() > deadline:
