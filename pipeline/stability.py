@@ -58,11 +58,12 @@ Plain statics lets two boxes that merely touch along vertical faces squeeze each
 with arbitrarily large normal forces whose friction then holds a box up: a box
 "wedged" between two columns by side friction alone is statically admissible, yet with
 no preload nothing produces that squeeze, and both MuJoCo and PyBullet drop it.  We
-remove friction from *side contacts*: face-to-face interfaces (>= 3 vertices) whose
-normal is within 15 degrees of horizontal (``constants.SIDE_CONTACT_MAX_NZ``) and that
-are not fixed.  They still push (normal force), so lateral bracing works; corner and
-edge contacts keep friction, so a plank leaning with its edge on a wall keeps the ladder
-limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  Pass
+remove friction from *side contacts*: face-to-face interfaces (>= 3 vertices), and edge
+contacts along a line steeper than 45 degrees (two upright boxes slightly yawed against
+each other touch along a vertical edge), whose normal is within 15 degrees of
+horizontal (``constants.SIDE_CONTACT_MAX_NZ``) and that are not fixed.  They still push
+(normal force), so lateral bracing works; corners and edges along flatter lines keep
+friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  Pass
 ``side_friction=True`` to get plain statics.
 """
 
@@ -268,7 +269,19 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
 
     nverts = contacts.n_vertices
     horizontal = np.abs(contacts.normal[:, 2]) < SIDE_CONTACT_MAX_NZ if M else np.zeros(0, bool)
-    no_friction = horizontal & (nverts >= 3)
+    # an edge contact along a vertical line (two upright boxes a little yawed against each
+    # other) is the same trap as a face-to-face one; an edge along a horizontal line (a
+    # plank's end against a wall) keeps its friction
+    upright_edge = np.zeros(M, bool)
+    if M:
+        V = contacts.vertices
+        lo = np.full((M, 3), np.inf)
+        hi = np.full((M, 3), -np.inf)
+        np.minimum.at(lo, contacts.vertex_contact, V)
+        np.maximum.at(hi, contacts.vertex_contact, V)
+        span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+        upright_edge = (nverts == 2) & (span[:, 2] > np.hypot(span[:, 0], span[:, 1]))
+    no_friction = horizontal & ((nverts >= 3) | upright_edge)
     if side_friction:
         no_friction[:] = False
     if fixed_contacts is not None:

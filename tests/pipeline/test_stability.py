@@ -153,6 +153,25 @@ def test_side_friction_trap():
     assert not res.stable and res.unstable_ids == ["w"]
 
 
+def test_side_friction_trap_along_vertical_edges():
+    # the same wedge between columns yawed by +-1 degree (mirror images): each column
+    # touches it along one vertical edge only, both edges in line
+    a = np.radians(1.0)
+    reach = 0.15 * (np.cos(a) + np.sin(a))  # a column's protruding edge from its centre
+    cols = (box("c0", (-0.2 - reach, 0, 0.5), (0.3, 0.3, 1.0), yaw=a),
+            box("c1", (0.2 + reach, 0, 0.5), (0.3, 0.3, 1.0), yaw=-a))
+    arr = Arrangement(cols + (box("w", (0, 0, 0.7), (0.4, 0.3, 0.2)),), (ground(),),
+                      (Contact("c0", "ground", "fixed"), Contact("c1", "ground", "fixed")))
+    from pipeline.contacts import find_contacts
+
+    cs = find_contacts(arr)
+    sides = [i for i, p in enumerate(cs.pairs) if "w" in p]
+    assert len(sides) == 2 and set(np.asarray(cs.n_vertices)[sides]) == {2}
+    assert check_stability(arr, side_friction=True).stable  # plain statics: wedged
+    res = check_stability(arr)
+    assert not res.stable and res.unstable_ids == ["w"]
+
+
 def test_backends_agree_on_random_stacks():
     rng = np.random.default_rng(7)
     verdicts = []
