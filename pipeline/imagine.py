@@ -2,6 +2,8 @@
 
 :func:`imagine` runs, in order:
 
+0. *alignment* (:func:`align_boxes`): boxes tilted by a few degrees stand upright, and
+   the parts of one object share its yaw;
 1. *overlap repair*: initial boxes fitted to noisy points may overlap slightly; each
    overlapping pair is separated by shrinking the box with fewer points along the
    separating axis (a true overlap cannot be a contact);
@@ -47,6 +49,63 @@ class ImagineResult:
     arrangement: Arrangement
     initial: Arrangement  #: after overlap repair and symmetry, before extension
     report: dict
+
+
+#: A box tilted by at most this many degrees (and not marked ``slanted``) is set upright
+#: (the threshold below which :mod:`pipeline.fit` calls an object upright) ...
+ALIGN_MAX_DEG = 15.0
+#: ... and a part whose yaw is within this many degrees of its object's takes the object's.
+OBJECT_YAW_MAX_DEG = 30.0
+
+
+def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
+                yaw_deg: float = OBJECT_YAW_MAX_DEG) -> tuple[Arrangement, int]:
+    """Undo small fitting errors in orientation: gravity and an object's own axes.
+
+    A box whose axis nearest the vertical is off by at most ``max_deg`` is turned about
+    its centre to stand upright (furniture and boxes stand; leaning parts are fitted as
+    ``slanted`` and left alone), and the parts of one object whose yaws (modulo 90
+    degrees) lie within ``yaw_deg`` of the object's volume-weighted mean yaw take that
+    yaw: a chair's legs and seat share one frame.  Returns the arrangement and the
+    number of boxes turned.
+    """
+    from .model import rotation_about_axis
+
+    cubs = list(arr.cuboids)
+    limit = np.radians(max_deg)
+    turned = set()
+    for i, c in enumerate(cubs):
+        if c.extra.get("slanted"):
+            continue
+        k = int(np.argmax(np.abs(c.rotation[2])))
+        a = c.rotation[:, k] * np.sign(c.rotation[2, k])
+        tilt = float(np.arccos(np.clip(a[2], -1.0, 1.0)))
+        if 1e-9 < tilt <= limit:
+            R = rotation_about_axis(np.cross(a, [0.0, 0.0, 1.0]), tilt) @ c.rotation
+            cubs[i] = c.with_(rotation=R)
+            turned.add(i)
+    groups: dict[str, list[int]] = {}
+    for i, c in enumerate(cubs):
+        if c.object is not None and not c.extra.get("slanted"):
+            groups.setdefault(c.object, []).append(i)
+    for idx in groups.values():
+        if len(idx) < 2:
+            continue
+        yaws, weights = [], []
+        for i in idx:
+            R = cubs[i].rotation
+            h = R[:, int(np.argmin(np.abs(R[2])))]  # a horizontal axis
+            yaws.append(np.arctan2(h[1], h[0]))
+            weights.append(float(np.prod(cubs[i].size)))
+        yaws = np.array(yaws)
+        mean = np.angle(np.sum(np.array(weights) * np.exp(4j * yaws))) / 4.0
+        for i, y in zip(idx, yaws, strict=True):
+            d = (y - mean + np.pi / 4) % (np.pi / 2) - np.pi / 4
+            if 1e-9 < abs(d) <= np.radians(yaw_deg) and abs(cubs[i].rotation[2]).max() > 1 - 1e-9:
+                cubs[i] = cubs[i].with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], -d)
+                                        @ cubs[i].rotation)
+                turned.add(i)
+    return arr.with_(cuboids=tuple(cubs)), len(turned)
 
 
 def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement, int]:
@@ -497,6 +556,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     arr = arr.with_(cuboids=tuple(
         c if c.observed is not None else c.with_(observed=ObservedBox(c.center, c.size))
         for c in arr.cuboids))
+    arr, aligned = align_boxes(arr)
     arr, repaired = repair_overlaps(arr)
     timings["repair"] = time.perf_counter() - t
 
@@ -588,6 +648,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     final = final.with_(meta=meta)
     report = {
         "cuboids": len(final.cuboids),
+        "aligned_boxes": aligned,
         "repaired_overlaps": repaired,
         "hallucinated": hallucinated,
         "candidate_edges": len(edges),

@@ -176,3 +176,31 @@ def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
     views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
     out, ids = deepen_thin_boxes(Arrangement((panel,), (ground(),)), views)
     assert ids == ["panel"] and out.cuboids[0].size[1] == pytest.approx(0.3)
+
+
+def test_align_boxes_sets_small_tilts_upright_and_parts_on_their_objects_yaw():
+    from pipeline.imagine import align_boxes
+    from pipeline.model import rotation_about_axis, rotation_about_z
+
+    tilt = rotation_about_axis([1.0, 1.0, 0.0], np.radians(9)) @ rotation_about_z(0.3)
+    seat = box("seat", (0, 0, 0.45), (0.45, 0.45, 0.05), rotation=rotation_about_z(0.3),
+               object="chair")
+    leg = box("leg", (0.2, 0.2, 0.2), (0.04, 0.04, 0.4), rotation=tilt @ rotation_about_z(0.25),
+              object="chair")
+    lean = box("plank", (1, 0, 0.4), (1.0, 0.2, 0.03), rotation=rotation_about_axis(
+        [0.0, 1.0, 0.0], np.radians(10)), object="plank").with_(extra={"slanted": True})
+    steep = box("steep", (2, 0, 0.4), (0.3, 0.3, 0.3),
+                rotation=rotation_about_axis([1.0, 0.0, 0.0], np.radians(25)))
+    arr, turned = align_boxes(Arrangement((seat, leg, lean, steep), (ground(),)))
+    assert turned == 2  # the leg set upright; both parts given the chair's one yaw
+    out = {c.id: c for c in arr.cuboids}
+    # the leg stands and shares the seat's axes (up to order and sign); centres stay
+    M = np.abs(out["leg"].rotation.T @ out["seat"].rotation)
+    np.testing.assert_allclose(M.max(axis=1), 1.0, atol=1e-9)
+    np.testing.assert_allclose(out["leg"].rotation[:, 2], [0, 0, 1], atol=1e-9)
+    np.testing.assert_array_equal(out["leg"].center, leg.center)
+    # the seat is the heavier part: the chair's yaw is within a degree of the seat's
+    M = np.abs(out["seat"].rotation.T @ seat.rotation)
+    assert M.max(axis=1).min() > np.cos(np.radians(1.0))
+    # a part marked slanted and a box tilted beyond 15 degrees are left alone
+    assert out["plank"] is lean and out["steep"] is steep
