@@ -28,6 +28,7 @@ the budget the result depends only on the input and the seed.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -404,10 +405,9 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
                           contacts=tuple(x for x in contacts
                                          if x.a in group and (x.b in group or x.b not in objects)))
         found = sub if stands(sub) else None  # the search may have kept a spare joint
-        for grown in ([] if found is not None else _growths(sub, [c.a, c.b], views or [], margin)):
-            if stands(grown):
-                found = grown
-                break
+        if found is None:
+            found = next((g for g in _growths(sub, [c.a, c.b], views or [], margin)
+                          if stands(g)), None)
         if found is None and len(group) <= max_group:
             try:
                 refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt,
@@ -434,7 +434,7 @@ GROWTH_FRACTIONS = (0.25, 0.5, 1.0)
 
 
 def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
-             margin: float) -> list[Arrangement]:
+             margin: float) -> Iterator[Arrangement]:
     """Variants of ``arr`` with one horizontal face of one of the two boxes ``ids``
     pushed out, into space no view saw empty and without interpenetration, smallest
     added volume first.  A face is pushed by :data:`GROWTH_FRACTIONS` of the box's extent
@@ -475,8 +475,9 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
                     out.append((x.volume(arr.sizes), len(out), c.id,
                                 arr.with_(cuboids=tuple(cubs))))
     out.sort(key=lambda t: t[:2])
-    return [g for _v, _n, cid, g in out
-            if not any(cid in (a, b) for a, b, _ in find_contacts(g).penetrations)]
+    for _v, _n, cid, g in out:  # lazily: the caller stops at the first that stands
+        if not any(cid in (a, b) for a, b, _ in find_contacts(g).penetrations):
+            yield g
 
 
 def _touching_group(arr: Arrangement, start: str) -> set[str]:
