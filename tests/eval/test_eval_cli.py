@@ -30,6 +30,19 @@ def _fake_suite_run(args) -> int:
     return 0 if not args.quick else 1
 
 
+def _threads_task(rng: np.random.Generator) -> dict:
+    import os
+
+    return {name: os.environ.get(name) for name in evaluate.THREAD_VARS}
+
+
+def _threads_suite_run(args) -> int:
+    tasks = [Task(f"t{k}", _threads_task) for k in range(2)]
+    summary = _common.run_suite_tasks(args, tasks, "threads")
+    (args.out / "seen.json").write_text(json.dumps(summary.results))
+    return 0
+
+
 @pytest.fixture
 def fake_suite(monkeypatch):
     mod = types.ModuleType("eval.suites.fake")
@@ -56,6 +69,21 @@ def test_eval_runs_suite_and_records_command(fake_suite, tmp_path):
     assert sorted(p.name for p in (out / "tasks").iterdir()) == ["s0.json", "s1.json", "s2.json"]
     # the suite's exit code is the command's
     assert main(["eval", "fake", "--out", str(out), "--quick"]) == 1
+
+
+def test_eval_pins_one_thread_per_worker_unless_set(fake_suite, monkeypatch, tmp_path):
+    """Suites scale by processes: each worker runs one OpenMP/BLAS thread; a user's own
+    setting wins."""
+    fake_suite.run = _threads_suite_run
+    for name in evaluate.THREAD_VARS:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    out = tmp_path / "thr"
+    assert main(["eval", "fake", "--out", str(out), "--workers", "2"]) == 0
+    want = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "3"}
+    seen = json.loads((out / "seen.json").read_text())
+    assert seen == {"t0": want, "t1": want}  # as the spawned worker processes saw them
+    assert json.loads((out / "command.json").read_text())["threads"] == want
 
 
 def test_eval_unknown_suite_lists_suites(fake_suite, tmp_path, capsys):
