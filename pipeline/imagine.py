@@ -172,8 +172,11 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     along an axis within 45 degrees of the first view's horizontal direction below
     :data:`THIN_FRACTION` of its other horizontal extent) has its back face pushed away
     from the camera towards that other extent, in ``steps`` increments, as far as no
-    view saw the added space empty and no other box or support is entered.  Returns the
-    arrangement and the ids deepened.
+    view saw the added space empty and no other box or support is entered.  A part of an
+    object with other parts goes no deeper than the deepest of them along that axis (a
+    shelf's bottom board, seen from the front edge, as deep as its side panels and
+    other boards, not as deep as it is wide).  Returns the arrangement and the ids
+    deepened.
     """
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
@@ -196,7 +199,10 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            full = width - float(c.size[axis])
+            target = min(width, _object_depth(arr, c, axis))
+            full = target - float(c.size[axis])
+            if full <= 1e-4:
+                break
             best = None
             for j in range(1, steps + 1):
                 length = full * j / steps
@@ -216,6 +222,100 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                 deepened.append(c.id)
             break
     return arr, deepened
+
+
+#: :func:`join_parts` trims a box in the way of a join by at most this much (metres) or
+#: this fraction of the box's extent there, whichever is larger.
+JOIN_TRIM_ABS = 0.02
+JOIN_TRIM_REL = 0.1
+
+
+def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, list[str]]:
+    """Extend parts of one object to meet where a short extension does, trimming the
+    noisy edge of another object's box that is in the way.
+
+    A shelf's board whose end was not seen stops a few centimetres short of its side
+    panel, and the book standing at that end, fitted to its visible points, reaches a
+    centimetre below the board's top there.  The search would reject the join (it
+    drives the board into the book) and the book would be extended to the floor past
+    the board.  Here a join whose extensions are short (:data:`pipeline.search.SHORT_JOIN`
+    of the box's extent) is applied when every box it enters belongs to another object
+    and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
+    (the face that reaches least far in).  Smallest added volume first; returns the
+    arrangement and ``"a+b"`` for each pair joined.
+    """
+    from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
+    from .search import SHORT_JOIN
+
+    if not any(c.object is not None for c in arr.cuboids):
+        return arr, []
+    joined: list[str] = []
+    max_ext = MAX_EXTENSION_REL * arr.scale_length()
+    for _ in range(max_rounds):
+        K = len(arr.cuboids)
+        trials = []
+        for e in pair_edges(arr, max_ext):
+            if not e.same_object or e.touching or isinstance(e.b, str):
+                continue
+            for o in e.options:
+                if o.type != "fixed" or not o.extensions or not all(
+                        x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis])
+                        for x in o.extensions):
+                    continue
+                trials.append((o.volume, e.a, e.b, o))
+        done = False
+        for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
+            grown = {x.box for x in o.extensions}
+            geom = apply_offsets(arr, offsets_of(list(o.extensions), K))
+            cubs = list(geom.cuboids)
+            ok = True
+            for p, q, _depth in find_contacts(geom).penetrations:
+                kp, kq = geom.index.get(p), geom.index.get(q)
+                if kp is None or kq is None or (kp in grown) == (kq in grown):
+                    ok = kp is not None and kq is not None and not (kp in grown or kq in grown)
+                    if not ok:
+                        break
+                    continue
+                k, other = (kq, kp) if kp in grown else (kp, kq)
+                r = cubs[k]
+                if r.object is not None and r.object == cubs[other].object:
+                    ok = False
+                    break
+                face = _overlap_face(r, cubs[other])
+                if face is None:
+                    continue
+                depth, axis, side = face
+                if depth > max(JOIN_TRIM_ABS, JOIN_TRIM_REL * float(r.size[axis])):
+                    ok = False
+                    break
+                u = r.rotation[:, axis] * (1.0 if side else -1.0)
+                size = r.size.copy()
+                size[axis] -= depth
+                cubs[k] = r.with_(center=r.center - u * depth / 2, size=size)
+            if not ok:
+                continue
+            trial = arr.with_(cuboids=tuple(cubs))
+            changed = {c.id for c, before in zip(cubs, arr.cuboids) if c is not before}
+            if any(p in changed or q in changed for p, q, _ in find_contacts(trial).penetrations):
+                continue
+            arr = trial
+            joined.append(f"{arr.cuboids[a].id}+{arr.cuboids[b].id}")
+            done = True
+            break
+        if not done:
+            break
+    return arr, joined
+
+
+def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
+    """The largest extent along ``c``'s ``axis`` of the other parts of ``c``'s object
+    (inf when it has none): how deep the object shows itself to be there."""
+    if c.object is None:
+        return float("inf")
+    u = c.rotation[:, axis]
+    depths = [float(np.abs(o.rotation.T @ u) @ o.size) for o in arr.cuboids
+              if o.object == c.object and o.id != c.id]
+    return max(depths, default=float("inf"))
 
 
 def _same_part(a: Cuboid, b: Cuboid) -> bool:
@@ -567,6 +667,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         scale = arr.scale_length()
         margin = 0.05 * scale
     arr, deepened = deepen_thin_boxes(arr, views, margin)
+    arr, joined_parts = join_parts(arr)
     hallucinated = []
     if symmetry:
         arr, hallucinated = hallucinate(arr, views, margin)
@@ -660,6 +761,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
         "deepened": deepened,
+        "joined_parts": joined_parts,
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "added_volume_m3": result.added_volume,

@@ -4,9 +4,14 @@ Every candidate edge (a pair of cuboids, or a cuboid and a support, see
 :mod:`pipeline.extend`) takes exactly one of its options.  A choice is feasible when
 no boxes interpenetrate and the arrangement is stable (:mod:`pipeline.stability`);
 among feasible choices we minimise, lexicographically, the number of ``fixed``
-contacts and then the added volume.  Edges between two parts of the same object are
-fused where they touch (their ``fixed`` costs nothing: the segmentation says they are
-one rigid object): they choose between staying apart and an extension that joins them.
+contacts, then the number of pieces the objects fall into, then the number of parts
+of one object a short extension could join but that are left apart, then the added
+volume.
+Edges between two parts of the same object are fused where they touch (their ``fixed``
+costs nothing: the segmentation says they are one rigid object): they choose between
+staying apart and an extension that joins them, and join when a short extension can
+(:data:`SHORT_JOIN`: a shelf's boards all meet its side panel, not only the one the
+statics needs; a desk's two side panels stay apart rather than grow into one).
 
 Branch and bound
 ----------------
@@ -101,8 +106,25 @@ def _edge_name(arr: Arrangement, e: Edge) -> tuple[str, str]:
     return arr.cuboids[e.a].id, b
 
 
-def _option_cost(e: Edge, o: Option) -> tuple[int, float]:
-    return (int(o.type == "fixed" and not e.same_object), o.volume)
+#: Parts of one object that a join reaches with extensions of at most this fraction of
+#: the extended box's extent along them (a board a few centimetres short of its side
+#: panel) should be joined; leaving them apart costs more than any added volume.
+SHORT_JOIN = 0.25
+
+
+def _short_join(arr: Arrangement, e: Edge) -> bool:
+    """Whether same-object edge ``e`` has a join whose extensions are all short."""
+    return e.same_object and any(
+        o.type == "fixed" and all(x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis])
+                                  for x in o.extensions)
+        for o in e.options)
+
+
+def _option_cost(e: Edge, o: Option, eager: bool = False) -> tuple[int, int, float]:
+    """(fixed contacts, parts of one object left apart, added volume) of one option;
+    ``eager``: ``e`` is a same-object edge with a short join (:data:`SHORT_JOIN`)."""
+    return (int(o.type == "fixed" and not e.same_object),
+            int(eager and o.type == "none"), o.volume)
 
 
 class _Group:
@@ -126,7 +148,15 @@ class _Group:
             fixed_edges.append(e)
         # decide the most expensive edges first; options cheapest first
         self.edges = sorted(fixed_edges, key=lambda e: -max(o.volume for o in e.options))
-        self.options = [sorted(e.options, key=lambda o: _option_cost(e, o)) for e in self.edges]
+        eager = {id(e) for e in self.edges if _short_join(arr, e)}
+        self._cost = lambda e, o: _option_cost(e, o, id(e) in eager)
+        self.options = [sorted(e.options, key=lambda o: self._cost(e, o)) for e in self.edges]
+        # parts of multi-part objects, and the levels of the edges that can join two
+        self._object_of = {k: arr.cuboids[k].object for k in boxes
+                           if arr.cuboids[k].object is not None}
+        self._joins = [lv for lv, e in enumerate(self.edges)
+                       if e.same_object and not isinstance(e.b, str)
+                       and any(o.type == "fixed" for o in self.options[lv])]
         self.mu, self.threshold, self.stats = mu, threshold, stats
         self.stab_cache: dict[tuple, tuple[bool, object]] = {}
         self.geom_cache: dict[tuple, tuple[Arrangement, ContactSet]] = {}
@@ -203,10 +233,41 @@ class _Group:
         self.stab_cache[assignment] = out
         return out
 
-    def cost(self, assignment: tuple[int, ...], upto: int | None = None) -> tuple[int, float]:
+    def pieces(self, assignment: tuple[int, ...], upto: int | None = None) -> int:
+        """Into how many more pieces than objects the joins split the objects' parts,
+        with the edges from ``upto`` on counted as joined (a lower bound)."""
         n = len(assignment) if upto is None else upto
-        fixed = sum(_option_cost(e, o[i])[0] for e, o, i in
-                    zip(self.edges[:n], self.options[:n], assignment[:n]))
+        if not self._joins:
+            return 0
+        parent = {k: k for k in self._object_of}
+
+        def find(x: int) -> int:
+            while parent[x] != x:
+                parent[x] = parent[parent[x]]
+                x = parent[x]
+            return x
+
+        for lv in self._joins:
+            if lv < n and self.options[lv][assignment[lv]].type != "fixed":
+                continue
+            e = self.edges[lv]
+            ra, rb = find(e.a), find(e.b)
+            if ra != rb:
+                parent[ra] = rb
+        roots = {(self._object_of[k], find(k)) for k in parent}
+        return len(roots) - len(set(self._object_of.values()))
+
+    def cost(self, assignment: tuple[int, ...], upto: int | None = None
+             ) -> tuple[int, int, int, float]:
+        """(fixed contacts, extra pieces of objects, same-object short joins left apart,
+        added volume) of the first ``upto`` decided edges: a lower bound of every
+        completion, compared in order."""
+        n = len(assignment) if upto is None else upto
+        fixed = apart = 0
+        for e, o, i in zip(self.edges[:n], self.options[:n], assignment[:n]):
+            f, a, _ = self._cost(e, o[i])
+            fixed += f
+            apart += a
         exts = {}
         for o, i in zip(self.options[:n], assignment[:n]):
             for x in o[i].extensions:
@@ -217,7 +278,7 @@ class _Group:
             s = self.full.sizes[box]
             other = [k for k in range(3) if k != axis]
             vol += length * s[other[0]] * s[other[1]]
-        return fixed, vol
+        return fixed, self.pieces(assignment, n), apart, vol
 
     # -- search
     def root(self) -> tuple[int, ...]:
@@ -235,6 +296,7 @@ class _Group:
             out.append(plain[0] if plain else (none[0] if none else 0))
         order = sorted(range(len(self.edges)),
                        key=lambda k: (not isinstance(self.edges[k].b, str),
+                                      not self.edges[k].same_object,
                                       min(o.volume for o in self.options[k])))
         for k in order:
             opts = self.options[k]
@@ -334,7 +396,7 @@ class _Group:
         # pass 1, all at once first (the common case: everything just rests)
         relax = {}
         for level, (e, opts) in enumerate(zip(self.edges, self.options)):
-            if _option_cost(e, opts[current[level]])[0] == 0:
+            if self._cost(e, opts[current[level]])[0] == 0:
                 continue
             same = opts[current[level]].extensions
             touch = sorted((n for n, o in enumerate(opts) if o.type == "touch"),
@@ -396,14 +458,14 @@ class _Group:
             bulk = list(current)
             for level, (e, opts) in enumerate(zip(self.edges, self.options)):
                 o = opts[current[level]]
-                if not o.extensions:
+                if not o.extensions or e.same_object:  # joins are dropped one by one
                     continue
                 a, b = _edge_name(self.full, e)
                 m = lookup.get((a, b) if a <= b else (b, a))
                 if m is not None and res.contact_load[m] > 1e-9:
                     continue
                 cheaper = [n for n, p in enumerate(opts)
-                           if _option_cost(e, p)[0] <= _option_cost(e, o)[0]
+                           if self._cost(e, p)[:2] <= self._cost(e, o)[:2]
                            and not p.extensions and p.type != "fixed"]
                 if cheaper:
                     bulk[level] = cheaper[0]
@@ -412,18 +474,24 @@ class _Group:
                 if self.evaluate(tuple(bulk))[0]:
                     current = bulk
         for level, (e, opts) in enumerate(zip(self.edges, self.options)):
-            here = _option_cost(e, opts[current[level]])
+            here = self._cost(e, opts[current[level]])
             for i in range(len(opts)):  # cheapest first
-                c = _option_cost(e, opts[i])
-                if c[0] <= here[0] and c[1] < here[1] and attempt(level, i):
+                c = self._cost(e, opts[i])
+                if not (c[:2] <= here[:2] and c[2] < here[2]):
+                    continue
+                trial = list(current)
+                trial[level] = i
+                if (self.cost(tuple(trial))[:3] <= self.cost(tuple(current))[:3]
+                        and attempt(level, i)):
                     break
         self.stats.leaves += 1
         return tuple(current)
 
     def siblings(self, assignment: tuple[int, ...], deadline: float) -> tuple[int, ...]:
         """Treat repeated parts alike: a part left hanging whose sibling (same object,
-        same size within 10 %, same support) was extended to that support gets the same
-        kind of contact, when that stays stable.  Four legs of a table all reach the
+        same support; same size within 10 %, or a reach of at most half its height as it
+        stands) was extended to that support gets the same kind of contact, when that
+        stays stable.  Four legs of a table all reach the
         floor even though two diagonal ones would balance it (the symmetry prior of the
         paper's section 5.1 (ii)); this may add volume on purpose."""
         current = list(assignment)
@@ -436,12 +504,14 @@ class _Group:
                 if m == k or f.b != e.b or fopts[current[m]].type == "none":
                     continue
                 other = full.cuboids[f.a]
-                if (me.object is None or me.object != other.object
-                        or not np.allclose(np.sort(me.size), np.sort(other.size), rtol=0.1)):
+                if me.object is None or me.object != other.object:
                     continue
+                alike = np.allclose(np.sort(me.size), np.sort(other.size), rtol=0.1)
                 want = fopts[current[m]].type
                 for i, o in enumerate(opts):
                     if o.type != want or time.perf_counter() > deadline:
+                        continue
+                    if not alike and not self._short_reach(current, o):
                         continue
                     trial = list(current)
                     trial[k] = i
@@ -451,6 +521,17 @@ class _Group:
                         break
                 break
         return tuple(current)
+
+    def _short_reach(self, assignment: list[int], option: Option) -> bool:
+        """Whether ``option``'s extensions are each at most half the box's vertical extent
+        as ``assignment`` has it: a leg seen only in its lower part and joined to the top
+        reaches the floor by a few centimetres, a table top would need its whole height."""
+        geom, _ = self.geometry(tuple(assignment))
+        for x in option.extensions:
+            c = geom.cuboids[self.local[x.box]]
+            if x.length > 0.5 * float(np.abs(c.rotation[2, :]) @ c.size):
+                return False
+        return bool(option.extensions)
 
     def improve(self, assignment: tuple[int, ...], deadline: float) -> tuple[int, ...]:
         """Single-edge moves to cheaper options while any lowers the cost (local optimum)."""

@@ -204,3 +204,48 @@ def test_align_boxes_sets_small_tilts_upright_and_parts_on_their_objects_yaw():
     assert M.max(axis=1).min() > np.cos(np.radians(1.0))
     # a part marked slanted and a box tilted beyond 15 degrees are left alone
     assert out["plank"] is lean and out["steep"] is steep
+
+
+def test_a_board_seen_by_its_front_edge_is_deepened_to_its_objects_depth():
+    # a shelf's bottom board seen from straight ahead shows only its front edge; it gets
+    # the depth its side panel shows (0.3 m), not its width (0.8 m); alone, its width
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 0.1), (0.0, 0.0, 0.1))
+    board = box("board", (0, 0.01, 0.1), (0.8, 0.02, 0.03), object="shelf")
+    panel = box("panel", (0.45, 0.15, 0.6), (0.02, 0.3, 1.2), object="shelf")
+    views = [DepthView(_depth_of_boxes([board], T, intr), intr, T)]
+    out, ids = deepen_thin_boxes(Arrangement((board, panel), (ground(),)), views)
+    assert ids == ["board"]
+    np.testing.assert_allclose(out.cuboids[0].size, [0.8, 0.3, 0.03], atol=1e-9)
+    assert out.cuboids[0].center[1] == pytest.approx(0.15)  # grown away from the camera
+    alone = board.with_(object=None)
+    out, ids = deepen_thin_boxes(Arrangement((alone,), (ground(),)), views)
+    assert ids == ["board"] and out.cuboids[0].size[1] == pytest.approx(0.8)
+
+
+def test_a_board_joins_its_panel_and_the_book_in_the_way_gives_way():
+    # the board's left end was not seen: it stops 4 cm short of the panel, and the book
+    # standing there, fitted to its points, reaches 8 mm below the board's top
+    from pipeline.imagine import join_parts
+
+    panel = box("panel", (-0.5, 0, 0.6), (0.02, 0.3, 1.2), object="shelf")
+    board = box("board", (0.02, 0, 0.3), (0.94, 0.3, 0.02), object="shelf")
+    book = box("book", (-0.468, 0, 0.302 + 0.15), (0.03, 0.2, 0.316), object="book")
+    arr = Arrangement((panel, board, book), (ground(),))
+    assert not find_contacts(arr).penetrations
+    out, joined = join_parts(arr)
+    assert joined == ["panel+board"]
+    b = out.cuboid("board")
+    assert b.center[0] - b.size[0] / 2 == pytest.approx(-0.49, abs=1e-9)  # meets the panel
+    k = out.cuboid("book")
+    assert k.center[2] - k.size[2] / 2 == pytest.approx(0.31, abs=1e-9)  # on the board now
+    assert k.center[2] + k.size[2] / 2 == pytest.approx(0.61, abs=1e-9)  # its top kept
+    assert not find_contacts(out).penetrations
+    # a book reaching 5 cm into the board's way is not noise: no join, nothing changed
+    deep = book.with_(center=np.array([-0.468, 0, 0.26 + 0.15]))
+    out, joined = join_parts(Arrangement((panel, board, deep), (ground(),)))
+    assert joined == [] and out.cuboid("book") is deep and out.cuboid("board") is board

@@ -141,3 +141,61 @@ def test_refinement_lowers_energy_keeping_contacts_and_observed_points():
     lo = out.center - out.size / 2
     hi = out.center + out.size / 2
     assert lo[0] <= 0.6 + 1e-6 and hi[0] >= 1.0 - 1e-6  # still covers its observed part
+
+
+def _shelf(board_gap: float):
+    """Two side panels on the ground and three boards fused to the right panel but
+    ``board_gap`` short of the left one (their ends were not seen)."""
+    cubs = [box("left", (-0.5, 0, 0.6), (0.02, 0.3, 1.2), object="shelf"),
+            box("right", (0.5, 0, 0.6), (0.02, 0.3, 1.2), object="shelf")]
+    inner = 0.98 - board_gap
+    for k, z in enumerate((0.3, 0.6, 0.9)):
+        cubs.append(box(f"board{k}", (0.49 - inner / 2, 0, z), (inner, 0.3, 0.02),
+                        object="shelf"))
+    return Arrangement(tuple(cubs), (ground(),))
+
+
+def test_every_board_joins_the_side_panel_a_short_extension_reaches():
+    # one joined board already holds the left panel up; the others join it as well
+    # (parts of one object meet where a short extension makes them: a shelf, not a comb)
+    res = search(_shelf(board_gap=0.04), candidate_edges(_shelf(board_gap=0.04)), budget=5)
+    assert res.stable and res.n_fixed == 0
+    t = _types(res.arrangement)
+    for k in range(3):
+        assert t[(f"board{k}", "left")] == "fixed"
+        assert t[(f"board{k}", "right")] == "fixed"
+        assert res.arrangement.cuboid(f"board{k}").size[0] == pytest.approx(0.98, abs=1e-9)
+    assert t[("ground", "left")] == "touch" and t[("ground", "right")] == "touch"
+
+
+def test_two_side_panels_held_by_the_top_do_not_grow_into_each_other():
+    # a desk: the top joins both panels; the panels are one object with it, so no panel
+    # should swell across the 0.6 m between them to meet the other one
+    top = box("top", (0, 0, 0.735), (1.0, 0.6, 0.03), object="desk")
+    left = box("left", (-0.45, 0, 0.36), (0.1, 0.6, 0.72), object="desk")
+    right = box("right", (0.45, 0, 0.36), (0.1, 0.6, 0.72), object="desk")
+    arr = Arrangement((top, left, right), (ground(),))
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    t = _types(res.arrangement)
+    assert t[("left", "top")] == "fixed" and t[("right", "top")] == "fixed"
+    assert ("left", "right") not in t
+    for k in ("left", "right"):
+        np.testing.assert_allclose(res.arrangement.cuboid(k).size, [0.1, 0.6, 0.72])
+
+
+def test_a_leg_seen_only_near_the_floor_joins_the_top_and_rests_on_the_floor():
+    # leg3 was seen only in its lower 0.2 m, 2 cm above the floor: it is joined to the top
+    # (one object) and, like its three siblings, rests on the floor, although two
+    # diagonal legs would carry the top alone
+    arr = _table(leg_gap=0.0)
+    cubs = list(arr.cuboids)
+    cubs[4] = box("leg3", (0.55, 0.35, 0.12), (0.05, 0.05, 0.2), object="table")
+    cubs[1] = box("leg0", (-0.55, -0.35, 0.385), (0.05, 0.05, 0.69), object="table")
+    arr = Arrangement(tuple(cubs), (ground(),))
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    t = _types(res.arrangement)
+    for k in range(4):
+        assert t[tuple(sorted((f"leg{k}", "top")))] == "fixed"
+        assert t[tuple(sorted((f"leg{k}", "ground")))] == "touch"
