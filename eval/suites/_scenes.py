@@ -66,10 +66,16 @@ def initial_from_dir(scene_dir: Path, budget: float = BUDGET):
 
 
 def summary_of(result_arr, report: dict) -> dict:
-    """Counts of a pipeline result: cuboids, contacts, fixed contacts, analytic verdict."""
+    """Counts of a pipeline result: cuboids, contacts, fixed contacts (all, and ``n_glue``:
+    those between different objects or with a support), analytic verdict."""
     n_fixed = sum(c.type == "fixed" for c in result_arr.contacts)
+    objects = {c.id: c.object for c in result_arr.cuboids}
+    n_glue = sum(c.type == "fixed" and (objects.get(c.a) is None
+                                        or objects.get(c.a) != objects.get(c.b))
+                 for c in result_arr.contacts)
     return {"n_final": len(result_arr.cuboids), "n_contacts": len(result_arr.contacts),
-            "n_fixed": int(n_fixed), "stable": bool(report.get("stable", False)),
+            "n_fixed": int(n_fixed), "n_glue": int(n_glue),
+            "stable": bool(report.get("stable", False)),
             "hallucinated": len(report.get("hallucinated", []))}
 
 

@@ -12,9 +12,10 @@ pipeline and its result is settled in MuJoCo.  Per case four figures are compare
 ``agree``
     1 when the analytic verdict and MuJoCo's agree; worse when they no longer do.
 ``fixed``
-    number of ``fixed`` contacts in the result; worse when it grows by more than
-    :data:`FIXED_TOL` (the search should explain the scene with as few glued contacts
-    as possible).
+    number of ``fixed`` contacts in the result between different objects or with a
+    support (glue; the joins between parts of one object are the object's own and
+    scored by the F1); worse when it grows by more than :data:`FIXED_TOL` (the search
+    should explain the scene with as few glued contacts as possible).
 
 Exit 1 with one line per regression on the stream when anything got worse, 0 otherwise.
 Outputs under ``--out``: ``regression.md`` / ``.csv`` (measured vs stored per case),
@@ -58,7 +59,8 @@ def figures(rec: dict) -> dict:
     from eval.suites._scenes import f1_of
 
     return {"f1": round(f1_of(rec, "optimized.typed"), 6), "stands": int(rec["stands"]),
-            "agree": int(bool(rec["stable"]) == bool(rec["stands"])), "fixed": int(rec["n_fixed"])}
+            "agree": int(bool(rec["stable"]) == bool(rec["stands"])),
+            "fixed": int(rec.get("n_glue", rec["n_fixed"]))}
 
 
 def compare(actual: dict[str, dict], expected: dict[str, dict]) -> list[str]:
@@ -140,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
             "no regression"
     note = (f"Measured vs stored ({path.name}); f1: typed optimized contact F1 (slack "
             f"{F1_TOL:g}), stands: the result stands in {ENGINE}, agree: analytic verdict == "
-            f"{ENGINE}, fixed: fixed contacts (may not grow by more than {FIXED_TOL}).\n\n"
+            f"{ENGINE}, fixed: fixed contacts between different objects or with a support "
+            f"(may not grow by more than {FIXED_TOL}).\n\n"
             f"{verdict}\n" + failures_markdown(summary))
     md = write_table(out, "regression", ["case", "f1", "stored f1", "stands", "stored stands",
                                          "agree", "stored agree", "fixed", "stored fixed"],
