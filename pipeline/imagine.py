@@ -263,13 +263,17 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
                         for x in o.extensions):
                     continue
                 trials.append((o.volume, e.a, e.b, o))
-        done = False
+        touched: set[int] = set()  # boxes changed this round: their trials wait
         for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
             grown = {x.box for x in o.extensions}
+            if touched & ({a, b} | grown):
+                continue
             geom = apply_offsets(arr, offsets_of(list(o.extensions), K))
             cubs = list(geom.cuboids)
+            near = _near(geom, grown)  # only boxes near the grown ones can be entered
+            local = geom.with_(cuboids=tuple(cubs[n] for n in near))
             ok = True
-            for p, q, _depth in find_contacts(geom).penetrations:
+            for p, q, _depth in find_contacts(local).penetrations:
                 kp, kq = geom.index.get(p), geom.index.get(q)
                 if kp is None or kq is None or (kp in grown) == (kq in grown):
                     ok = kp is not None and kq is not None and not (kp in grown or kq in grown)
@@ -295,16 +299,30 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
             if not ok:
                 continue
             trial = arr.with_(cuboids=tuple(cubs))
-            changed = {c.id for c, before in zip(cubs, arr.cuboids) if c is not before}
-            if any(p in changed or q in changed for p, q, _ in find_contacts(trial).penetrations):
+            changed = {n for n, (c, before) in enumerate(zip(cubs, arr.cuboids))
+                       if c is not before}
+            names = {cubs[n].id for n in changed}
+            local = trial.with_(cuboids=tuple(cubs[n] for n in near))
+            if any(p in names or q in names for p, q, _ in find_contacts(local).penetrations):
                 continue
             arr = trial
+            touched |= changed | {a, b}
             joined.append(f"{arr.cuboids[a].id}+{arr.cuboids[b].id}")
-            done = True
-            break
-        if not done:
+        if not touched:
             break
     return arr, joined
+
+
+def _near(arr: Arrangement, ids: set[int], pad: float = 0.01) -> list[int]:
+    """Indices of the boxes whose world bounds come within ``pad`` of those of the boxes
+    ``ids`` (themselves included), in order."""
+    half = np.einsum("kij,kj->ki", np.abs(arr.rotations), arr.sizes / 2.0)
+    lo, hi = arr.centers - half, arr.centers + half
+    sel = sorted(ids)
+    mask = np.zeros(len(arr.cuboids), bool)
+    for k in sel:
+        mask |= np.all((lo <= hi[k] + pad) & (hi >= lo[k] - pad), axis=1)
+    return np.nonzero(mask)[0].tolist()
 
 
 def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
