@@ -238,14 +238,14 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     panel, and the book standing at that end, fitted to its visible points, reaches a
     centimetre below the board's top there.  The search would reject the join (it
     drives the board into the book) and the book would be extended to the floor past
-    the board.  Here a join whose extensions are short (:data:`pipeline.search.SHORT_JOIN`
-    of the box's extent) is applied when every box it enters belongs to another object
+    the board.  Here a join whose extensions are short (:func:`pipeline.search.short_join`)
+    is applied when every box it enters belongs to another object
     and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
     (the face that reaches least far in).  Smallest added volume first; returns the
     arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
-    from .search import SHORT_JOIN
+    from .search import short_join
 
     if not any(c.object is not None for c in arr.cuboids):
         return arr, []
@@ -257,12 +257,8 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
         for e in pair_edges(arr, max_ext):
             if not e.same_object or e.touching or isinstance(e.b, str):
                 continue
-            for o in e.options:
-                if o.type != "fixed" or not o.extensions or not all(
-                        x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis])
-                        for x in o.extensions):
-                    continue
-                trials.append((o.volume, e.a, e.b, o))
+            trials += [(o.volume, e.a, e.b, o) for o in e.options
+                       if o.extensions and short_join(arr, o)]
         touched: set[int] = set()  # boxes changed this round: their trials wait
         for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
             grown = {x.box for x in o.extensions}
@@ -275,11 +271,11 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
             ok = True
             for p, q, _depth in find_contacts(local).penetrations:
                 kp, kq = geom.index.get(p), geom.index.get(q)
-                if kp is None or kq is None or (kp in grown) == (kq in grown):
-                    ok = kp is not None and kq is not None and not (kp in grown or kq in grown)
-                    if not ok:
-                        break
-                    continue
+                if kp is None or kq is None or (kp in grown and kq in grown):
+                    ok = False  # into a support, or two grown boxes into each other
+                    break
+                if kp not in grown and kq not in grown:
+                    continue  # an overlap the join did not make
                 k, other = (kq, kp) if kp in grown else (kp, kq)
                 r = cubs[k]
                 if r.object is not None and r.object == cubs[other].object:

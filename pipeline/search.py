@@ -112,12 +112,16 @@ def _edge_name(arr: Arrangement, e: Edge) -> tuple[str, str]:
 SHORT_JOIN = 0.25
 
 
+def short_join(arr: Arrangement, o: Option) -> bool:
+    """Whether ``o`` is a join (``fixed``) whose extensions are all short
+    (:data:`SHORT_JOIN` of the extended box's extent along them)."""
+    return o.type == "fixed" and all(
+        x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis]) for x in o.extensions)
+
+
 def _short_join(arr: Arrangement, e: Edge) -> bool:
-    """Whether same-object edge ``e`` has a join whose extensions are all short."""
-    return e.same_object and any(
-        o.type == "fixed" and all(x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis])
-                                  for x in o.extensions)
-        for o in e.options)
+    """Whether same-object edge ``e`` has a short join."""
+    return e.same_object and any(short_join(arr, o) for o in e.options)
 
 
 def _option_cost(e: Edge, o: Option, eager: bool = False) -> tuple[int, int, float]:
