@@ -173,7 +173,7 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     :data:`THIN_FRACTION` of its other horizontal extent) has its back face pushed away
     from the camera towards that other extent, in ``steps`` increments, as far as no
     view saw the added space empty and no other box or support is entered.  A part of an
-    object with other parts goes no deeper than the deepest of them along that axis (a
+    object with other parts goes no deeper than they span together along that axis (a
     shelf's bottom board, seen from the front edge, as deep as its side panels and
     other boards, not as deep as it is wide).  Returns the arrangement and the ids
     deepened.
@@ -322,14 +322,17 @@ def _near(arr: Arrangement, ids: set[int], pad: float = 0.01) -> list[int]:
 
 
 def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
-    """The largest extent along ``c``'s ``axis`` of the other parts of ``c``'s object
-    (inf when it has none): how deep the object shows itself to be there."""
+    """How far the other parts of ``c``'s object span along ``c``'s ``axis`` together
+    (inf when it has none): how deep the object shows itself to be there (a table's
+    legs front and back span its top's depth; a shelf's panels and boards, its boards')."""
     if c.object is None:
         return float("inf")
     u = c.rotation[:, axis]
-    depths = [float(np.abs(o.rotation.T @ u) @ o.size) for o in arr.cuboids
-              if o.object == c.object and o.id != c.id]
-    return max(depths, default=float("inf"))
+    proj = [o.corners() @ u for o in arr.cuboids if o.object == c.object and o.id != c.id]
+    if not proj:
+        return float("inf")
+    proj = np.concatenate(proj)
+    return float(proj.max() - proj.min())
 
 
 def _same_part(a: Cuboid, b: Cuboid) -> bool:
