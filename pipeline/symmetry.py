@@ -4,7 +4,9 @@ A part with no points cannot be extended into existence.  Where an object shows 
 repeated structure, the missing copy is added: an object with a top (its part of
 largest horizontal area) and exactly three legs below it (upright parts taller than
 wide) whose positions in the top's frame occupy two or three of its four quadrants
-gets the missing legs, each mirrored from a leg of a neighbouring quadrant.  The new part
+gets the missing legs: each is the diagonally opposite leg turned half a turn about the
+top's vertical axis (independent of the top's yaw), or, when that leg is missing too, a
+leg of a neighbouring quadrant mirrored.  The new part
 is kept only if it does not interpenetrate anything and, when a depth image exists,
 the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
 no observed box, and takes part in the search like any other cuboid.
@@ -83,16 +85,22 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
         for missing in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
             if missing in quads:
                 continue
-            # mirror a leg of a neighbouring quadrant (same y side first, then same x side)
-            src = next((n for n, q in enumerate(quads) if q == (-missing[0], missing[1])), None)
-            flip = 0
-            if src is None:
-                src = next((n for n, q in enumerate(quads) if q == (missing[0], -missing[1])), None)
-                flip = 1
+            # the diagonal leg turned half a turn about the top's vertical axis (this
+            # does not depend on the top's yaw, which noise and tilt make the least
+            # certain part of its pose), else a leg of a neighbouring quadrant mirrored
+            # (same y side first, then same x side)
+            flips: tuple[int, ...] = (0, 1)
+            src = next((n for n, q in enumerate(quads) if q == (-missing[0], -missing[1])), None)
+            for flip in (0, 1):
+                if src is not None:
+                    break
+                want = (-missing[0], missing[1]) if flip == 0 else (missing[0], -missing[1])
+                src = next((n for n, q in enumerate(quads) if q == want), None)
+                flips = (flip,)
             if src is None:
                 continue
             p = local[src].copy()
-            p[flip] = -p[flip]
+            p[list(flips)] = -p[list(flips)]
             leg = legs[src]
             new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ p, leg.rotation,
                          leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})

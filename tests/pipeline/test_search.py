@@ -199,3 +199,23 @@ def test_a_leg_seen_only_near_the_floor_joins_the_top_and_rests_on_the_floor():
     for k in range(4):
         assert t[tuple(sorted((f"leg{k}", "top")))] == "fixed"
         assert t[tuple(sorted((f"leg{k}", "ground")))] == "touch"
+
+
+def test_missing_legs_are_placed_by_the_half_turn_whatever_the_tops_yaw():
+    # a chair: its seat, its back and two adjacent legs seen; the seat's fitted yaw is 15
+    # degrees off the legs' frame.
+    # Each missing leg is its diagonal partner turned half a turn about the top's centre,
+    # so it lands where the true leg stands (mirroring in the top's frame would miss it
+    # by about 2 r sin 15 degrees, 17 cm here)
+    from pipeline.model import rotation_about_axis
+    from pipeline.symmetry import hallucinate
+
+    R = rotation_about_axis([0, 0, 1], np.radians(15))
+    top = box("top", (0, 0, 0.75), (1.2, 0.8, 0.04), object="table").with_(rotation=R)
+    legs = [box(f"leg{k}", (x, y, 0.365), (0.05, 0.05, 0.73), object="table")
+            for k, (x, y) in enumerate([(-0.55, -0.35), (0.55, -0.35)])]
+    back = box("back", (0, 0.38, 1.02), (1.2, 0.04, 0.5), object="table")
+    out, new = hallucinate(Arrangement((top, back, *legs), (ground(),)), [])
+    assert len(new) == 2
+    got = sorted(tuple(np.round(out.cuboid(i).center[:2], 9)) for i in new)
+    np.testing.assert_allclose(got, [(-0.55, 0.35), (0.55, 0.35)], atol=1e-9)
