@@ -7,15 +7,18 @@
 1. *overlap repair*: initial boxes fitted to noisy points may overlap slightly; each
    overlapping pair is separated by shrinking the box with fewer points along the
    separating axis (a true overlap cannot be a contact);
-2. *symmetry* (:mod:`pipeline.symmetry`): wholly occluded repeated parts (the fourth leg)
-   are hallucinated where the object's other parts show the pattern and the sensor saw
+2. *depth and joins*: boxes seen face-on get depth (:func:`deepen_thin_boxes`), parts
+   of one object a short extension joins are joined (:func:`join_parts`); *symmetry*
+   (:mod:`pipeline.symmetry`): wholly occluded repeated parts (the fourth leg) are
+   hallucinated where the object's other parts show the pattern and the sensor saw
    nothing there;
 3. *candidates* (:mod:`pipeline.extend`) with interpenetration and visibility pruning;
 4. *search* (:mod:`pipeline.search`): fewest fixed contacts, then least added volume;
    then parts of one object that were left apart are joined where an extension can
    (:func:`connect_objects`: an object is one connected rigid body), and glue joints
    between different objects are dropped where refining the boxes makes them stand
-   without (:func:`relax_fixed`);
+   without (:func:`relax_fixed`), and a box stretched to the floor far below what was
+   seen of it rests on a hidden support instead (:func:`hidden_supports`: a sofa's seat);
 5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
@@ -545,6 +548,136 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
     return final, tried, relaxed
 
 
+#: A box of a one-part object extended down to the floor by more than this many times
+#: its seen height, and by at least :data:`HIDDEN_MIN_DROP` metres, rests on a hidden
+#: support instead (:func:`hidden_supports`).
+HIDDEN_DROP_REL = 1.5
+HIDDEN_MIN_DROP = 0.15
+#: Hidden supports side by side (gap below this, metres) with tops this close merge.
+HIDDEN_MERGE_GAP = 0.05
+
+
+def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None = None
+                    ) -> tuple[Arrangement, list[str]]:
+    """Give a box that the search stretched down to the floor a support of its own.
+
+    A sofa's seat is hidden under its cushions and behind its back; the search can hold
+    a cushion up only by growing it to the floor, half a metre of cushion.  A box of an
+    object with no other parts, seen over a height ``h`` and grown down to the floor by
+    more than :data:`HIDDEN_DROP_REL` ``h`` (and :data:`HIDDEN_MIN_DROP`), keeps its
+    seen part and stands on a new box below it (``extra["hidden_support"]``, hallucinated,
+    no observed box).  New boxes side by side with tops at one height merge (one seat
+    under two cushions); a new box that touches parts of a multi-part object becomes a
+    part of it (the seat of the sofa whose arms and back hold it), fused to them.  Each
+    change is kept only if nothing interpenetrates and the arrangement stands.  Returns
+    the arrangement and the ids of the new boxes.
+    """
+    from .search import finalize
+
+    if final.stability is None or not final.stability.stable:
+        return final, []
+    parts: dict[str, int] = {}
+    for c in final.cuboids:
+        if c.object is not None:
+            parts[c.object] = parts.get(c.object, 0) + 1
+    grounded = {c.a for c in final.contacts if c.b == "ground"} | \
+        {c.b for c in final.contacts if c.a == "ground"}
+    cands = []  # (cut box, support box)
+    for c in final.cuboids:
+        o = c.observed
+        if (o is None or c.extra.get("hallucinated") or c.id not in grounded
+                or (c.object is not None and parts[c.object] > 1)):
+            continue
+        k = int(np.argmax(np.abs(c.rotation[2])))
+        if abs(c.rotation[2, k]) < 1 - 1e-6:
+            continue
+        bottom = float(c.center[2] - c.size[k] / 2)
+        seen_bottom = float(o.center[2] - o.size[k] / 2)
+        drop = seen_bottom - bottom
+        if drop < max(HIDDEN_MIN_DROP, HIDDEN_DROP_REL * float(o.size[k])):
+            continue
+        size = c.size.copy()
+        size[k] = drop
+        low = c.with_(center=np.array([*c.center[:2], bottom + drop / 2]), size=size)
+        size = c.size.copy()
+        size[k] -= drop
+        cut = c.with_(center=np.array([*c.center[:2], seen_bottom + size[k] / 2]), size=size)
+        cands.append((cut, low))
+    if not cands:
+        return final, []
+    # supports side by side with tops at one height: one box (in the first one's frame)
+    groups: list[list[int]] = []
+    for i, (_, low) in enumerate(cands):
+        for g in groups:
+            first = cands[g[0]][1]
+            top_i = low.center[2] + low.size[int(np.argmax(np.abs(low.rotation[2])))] / 2
+            top_g = first.center[2] + first.size[int(np.argmax(np.abs(first.rotation[2])))] / 2
+            sep, _, _ = sat_separation(low.center[None], low.rotation[None],
+                                       low.size[None] / 2, first.center[None],
+                                       first.rotation[None], first.size[None] / 2,
+                                       np.zeros(1))
+            if _same_axes(low, first) and sep[0] < HIDDEN_MERGE_GAP and \
+                    abs(top_i - top_g) < HIDDEN_MERGE_GAP:
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    objects = [c.object for c in final.cuboids if c.object is not None and parts[c.object] > 1]
+    added: list[str] = []
+    current = final
+    for n, g in enumerate(groups):
+        low = cands[g[0]][1]
+        for i in g[1:]:
+            low = _merge(low, cands[i][1])
+        k = int(np.argmax(np.abs(low.rotation[2])))
+        top = min(float(cands[i][0].center[2] - cands[i][0].size[k] / 2) for i in g)
+        size = low.size.copy()
+        size[k] = top - float(low.center[2] - low.size[k] / 2)
+        new_id = f"hidden{n}"
+        while new_id in current.index:
+            new_id += "_"
+        support = Cuboid(new_id, np.array([*low.center[:2], top - size[k] / 2]), low.rotation,
+                         size, low.density, None, None,
+                         {"hallucinated": True, "hidden_support": True, "points": 0})
+        cut = {}
+        for i in g:  # each box down to the common top (at most the merge gap)
+            c = cands[i][0]
+            kk = int(np.argmax(np.abs(c.rotation[2])))
+            grow = float(c.center[2] - c.size[kk] / 2) - top
+            sz = c.size.copy()
+            sz[kk] += grow
+            cut[c.id] = c.with_(center=c.center - np.array([0, 0, grow / 2]), size=sz)
+        # a part of the multi-part object it touches most (the sofa around its seat)
+        near = {}
+        for c in current.cuboids:
+            if c.object in objects and c.id not in cut:
+                sep, _, _ = sat_separation(support.center[None], support.rotation[None],
+                                           support.size[None] / 2, c.center[None],
+                                           c.rotation[None], c.size[None] / 2, np.zeros(1))
+                if sep[0] < 0.02:
+                    near[c.object] = near.get(c.object, 0) + 1
+        if near:
+            support = support.with_(object=max(sorted(near), key=lambda x: near[x]))
+        else:
+            support = support.with_(object=new_id)
+        trial = current.with_(cuboids=tuple(cut.get(c.id, c) for c in current.cuboids)
+                              + (support,), stability=None)
+        changed = set(cut) | {new_id}
+        cs = find_contacts(trial)
+        if any(a in changed or b in changed for a, b, _ in cs.penetrations):
+            continue
+        fixed = [c for c in current.contacts if c.type == "fixed"]
+        touching = cs.lookup()
+        fixed += [Contact(new_id, c.id, "fixed") for c in trial.cuboids
+                  if c.object == support.object and c.id != new_id
+                  and tuple(sorted((new_id, c.id))) in touching]
+        cand = finalize(trial, fixed, mu=mu, threshold=threshold)
+        if cand.stability is not None and cand.stability.stable:
+            current = cand
+            added.append(new_id)
+    return current, added
+
+
 #: Growths tried per face by :func:`relax_fixed`, as fractions of the box's extent there
 #: (besides the pushes that reach the partner box's centre and its far side).
 GROWTH_FRACTIONS = (0.25, 0.5, 1.0)
@@ -744,6 +877,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
         final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
                          threshold=threshold)
+    final, hidden = hidden_supports(final, mu=mu, threshold=threshold)
     timings["relax"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -769,7 +903,8 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "cuboids": len(final.cuboids),
         "aligned_boxes": aligned,
         "repaired_overlaps": repaired,
-        "hallucinated": hallucinated,
+        "hallucinated": hallucinated + hidden,
+        "hidden_supports": hidden,
         "candidate_edges": len(edges),
         "candidate_options": n_candidates,
         "rejected_by_visibility": rejected_visibility,

@@ -219,3 +219,30 @@ def test_missing_legs_are_placed_by_the_half_turn_whatever_the_tops_yaw():
     assert len(new) == 2
     got = sorted(tuple(np.round(out.cuboid(i).center[:2], 9)) for i in new)
     np.testing.assert_allclose(got, [(-0.55, 0.35), (0.55, 0.35)], atol=1e-9)
+
+
+def test_cushions_grown_to_the_floor_get_the_hidden_seat_of_their_sofa():
+    # the seat under two cushions was never seen: the search holds each cushion up by
+    # growing it 0.36 m to the floor; instead both keep their seen 9 cm and rest on one
+    # new box, which becomes part of the sofa whose back and arms it meets
+    back = box("back", (0, 0.4, 0.425), (2.0, 0.2, 0.85), object="sofa")
+    arms = [box(f"arm{k}", (s * 0.9, 0, 0.3), (0.2, 0.6, 0.6), object="sofa")
+            for k, s in enumerate((-1, 1))]
+    cushions = [box(f"cushion{k}", (s * 0.4, 0, 0.405), (0.8, 0.6, 0.09), object=f"cushion{k}")
+                for k, s in enumerate((-1, 1))]
+    arr = Arrangement((back, *arms, *cushions), (ground(),))
+    res = imagine(arr, budget=5)
+    out = res.arrangement
+    assert res.report["hidden_supports"] == ["hidden0"]
+    assert out.stability.stable and res.report["fixed_chosen"] == 0
+    seat = out.cuboid("hidden0")
+    assert seat.object == "sofa" and seat.extra["hallucinated"] and seat.observed is None
+    np.testing.assert_allclose(seat.center, [0, 0, 0.18], atol=1e-9)
+    np.testing.assert_allclose(seat.size, [1.6, 0.6, 0.36], atol=1e-9)
+    for k in range(2):  # the cushions keep what was seen of them
+        np.testing.assert_allclose(out.cuboid(f"cushion{k}").size, [0.8, 0.6, 0.09], atol=1e-9)
+    t = _types(out)
+    assert t[("cushion0", "hidden0")] == t[("cushion1", "hidden0")] == "touch"
+    assert t[("ground", "hidden0")] == "touch"
+    assert t[("back", "hidden0")] == t[("arm0", "hidden0")] == t[("arm1", "hidden0")] == "fixed"
+    assert ("cushion0", "ground") not in t
