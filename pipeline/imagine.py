@@ -577,7 +577,9 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
     seen part and stands on a new box below it (``extra["hidden_support"]``, hallucinated,
     no observed box).  New boxes side by side with tops at one height merge (one seat
     under two cushions); a new box that touches parts of a multi-part object becomes a
-    part of it (the seat of the sofa whose arms and back hold it), fused to them.  Each
+    part of it (the seat of the sofa whose arms and back hold it), fused to them.  A
+    box alone, next to no such object, is left as the search made it: one tall box
+    whose top was all the sensor saw is as likely.  Each
     change is kept only if nothing interpenetrates and the arrangement stands.  Returns
     the arrangement and the ids of the new boxes.
     """
@@ -667,8 +669,10 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
                     near[c.object] = near.get(c.object, 0) + 1
         if near:
             support = support.with_(object=max(sorted(near), key=lambda x: near[x]))
-        else:
+        elif len(g) > 1:  # under several boxes at one height: their own support
             support = support.with_(object=new_id)
+        else:  # one box alone: as likely one tall box whose top was all that was seen
+            continue
         trial = current.with_(cuboids=tuple(cut.get(c.id, c) for c in current.cuboids)
                               + (support,), stability=None)
         changed = set(cut) | {new_id}

@@ -246,3 +246,13 @@ def test_cushions_grown_to_the_floor_get_the_hidden_seat_of_their_sofa():
     assert t[("ground", "hidden0")] == "touch"
     assert t[("back", "hidden0")] == t[("arm0", "hidden0")] == t[("arm1", "hidden0")] == "fixed"
     assert ("cushion0", "ground") not in t
+
+
+def test_a_lone_box_seen_only_at_its_top_stays_one_tall_box():
+    # nothing says a hidden support is separate from the box above it: one box, grown
+    arr = Arrangement((box("crate", (0, 0, 0.55), (0.4, 0.4, 0.1), object="crate"),),
+                      (ground(),))
+    res = imagine(arr, budget=5)
+    assert res.report["hidden_supports"] == []
+    np.testing.assert_allclose(res.arrangement.cuboid("crate").size, [0.4, 0.4, 0.6], atol=1e-9)
+    assert _types(res.arrangement) == {("crate", "ground"): "touch"}
