@@ -30,6 +30,11 @@ CEILING_MIN_HEIGHT = 1.8
 #: A vertical plane is a wall only if at most this fraction of the points lie behind it
 #: (a box face has the rest of the box behind it).
 WALL_MAX_BEHIND = 0.10
+#: A vertical plane parallel to a wall already found (normals within this many degrees)
+#: and this close to it (metres) is the same wall: at 4 m a Kinect's depth noise makes a
+#: wall a slab thicker than the RANSAC threshold, and RANSAC returns it as two planes.
+WALL_TWIN_DEG = 5.0
+WALL_TWIN_DIST = 0.10
 
 
 @dataclass(frozen=True)
@@ -250,6 +255,13 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         ref = cam_w if camera_frame or T_world_input is not None else world.mean(0)
         if (ref - pt_w) @ n_w < 0:
             n_w = -n_w
+        twin = next((k for k, w in enumerate(walls)
+                     if n_w @ w.normal > np.cos(np.radians(WALL_TWIN_DEG))
+                     and abs(float(w.signed_distance(pt_w[None])[0])) < WALL_TWIN_DIST), None)
+        if twin is not None:  # the far side of one noisy wall: its points are that wall's
+            d = Support("twin", pt_w, n_w).signed_distance(world)
+            labels[(np.abs(d) < 1.5 * thr) & (labels == -1)] = twin + 1
+            continue
         wall = Support(f"wall:{len(walls)}", pt_w, n_w)
         d = wall.signed_distance(world)
         # the wall, what sticks out of it by a little (handles, skirting) and what is behind

@@ -68,6 +68,22 @@ def test_wall_is_found_and_faces_the_camera():
     assert wall.signed_distance(cam[None])[0] == pytest.approx(1.6 + 0.8, abs=5e-3)
 
 
+def test_a_wall_seen_as_two_parallel_layers_is_one_wall():
+    # far away a Kinect's depth noise makes a wall a slab thicker than the RANSAC
+    # threshold; RANSAC then returns its two sides as two planes 5 cm apart
+    fr = raycast(BOXES, eye=(1.6, -1.8, 1.5), target=(0.3, 0.2, 0.15), wall_x=-0.8)
+    pts, _ = backproject(fr.depth, fr.intr)
+    f0 = find_frame(pts, np.random.default_rng(2), camera_frame=True)
+    n_input = f0.T_world_input[:3, :3].T @ f0.walls[0].normal  # towards the camera
+    far = pts[f0.labels == 1][::4] - 0.05 * n_input  # a thinner layer behind the first
+    both = np.concatenate([pts, far])
+    f = find_frame(both, np.random.default_rng(2), camera_frame=True)
+    assert len(f.walls) == 1
+    assert (f.labels[len(pts):] == 1).mean() > 0.99  # the far layer belongs to the wall
+    cam = f.T_world_input[:3, 3]
+    assert f.walls[0].signed_distance(cam[None])[0] == pytest.approx(2.4, abs=0.06)
+
+
 def test_given_pose_is_kept():
     fr = raycast(BOXES, eye=(1.6, -1.8, 1.5), target=(0.3, 0.2, 0.15))
     pts, _ = backproject(fr.depth, fr.intr)
