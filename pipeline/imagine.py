@@ -566,6 +566,19 @@ HIDDEN_MIN_DROP = 0.15
 HIDDEN_MERGE_GAP = 0.05
 
 
+def _z_range(c: Cuboid) -> tuple[float, float]:
+    """(bottom, top) heights of an upright box."""
+    h = float(c.size[int(np.argmax(np.abs(c.rotation[2])))]) / 2
+    return float(c.center[2]) - h, float(c.center[2]) + h
+
+
+def _gap(a: Cuboid, b: Cuboid) -> float:
+    """Separation of two boxes (negative: they overlap), by the separating-axis test."""
+    sep, _, _ = sat_separation(a.center[None], a.rotation[None], a.size[None] / 2,
+                               b.center[None], b.rotation[None], b.size[None] / 2, np.zeros(1))
+    return float(sep[0])
+
+
 def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None = None
                     ) -> tuple[Arrangement, list[str]]:
     """Give a box that the search stretched down to the floor a support of its own.
@@ -579,9 +592,9 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
     under two cushions); a new box that touches parts of a multi-part object becomes a
     part of it (the seat of the sofa whose arms and back hold it), fused to them.  A
     box alone, next to no such object, is left as the search made it: one tall box
-    whose top was all the sensor saw is as likely.  Each
-    change is kept only if nothing interpenetrates and the arrangement stands.  Returns
-    the arrangement and the ids of the new boxes.
+    whose top was all the sensor saw is as likely.  Each change is kept only if nothing
+    interpenetrates and the arrangement stands.  Returns the arrangement and the ids of
+    the new boxes.
     """
     from .search import finalize
 
@@ -602,7 +615,7 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
         k = int(np.argmax(np.abs(c.rotation[2])))
         if abs(c.rotation[2, k]) < 1 - 1e-6:
             continue
-        bottom = float(c.center[2] - c.size[k] / 2)
+        bottom, _ = _z_range(c)
         seen_bottom = float(o.center[2] - o.size[k] / 2)
         drop = seen_bottom - bottom
         if drop < max(HIDDEN_MIN_DROP, HIDDEN_DROP_REL * float(o.size[k])):
@@ -621,19 +634,13 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
     for i, (_, low) in enumerate(cands):
         for g in groups:
             first = cands[g[0]][1]
-            top_i = low.center[2] + low.size[int(np.argmax(np.abs(low.rotation[2])))] / 2
-            top_g = first.center[2] + first.size[int(np.argmax(np.abs(first.rotation[2])))] / 2
-            sep, _, _ = sat_separation(low.center[None], low.rotation[None],
-                                       low.size[None] / 2, first.center[None],
-                                       first.rotation[None], first.size[None] / 2,
-                                       np.zeros(1))
-            if _same_axes(low, first) and sep[0] < HIDDEN_MERGE_GAP and \
-                    abs(top_i - top_g) < HIDDEN_MERGE_GAP:
+            if (_same_axes(low, first) and _gap(low, first) < HIDDEN_MERGE_GAP
+                    and abs(_z_range(low)[1] - _z_range(first)[1]) < HIDDEN_MERGE_GAP):
                 g.append(i)
                 break
         else:
             groups.append([i])
-    objects = [c.object for c in final.cuboids if c.object is not None and parts[c.object] > 1]
+    objects = {c.object for c in final.cuboids if c.object is not None and parts[c.object] > 1}
     added: list[str] = []
     current = final
     for n, g in enumerate(groups):
@@ -641,9 +648,9 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
         for i in g[1:]:
             low = _merge(low, cands[i][1])
         k = int(np.argmax(np.abs(low.rotation[2])))
-        top = min(float(cands[i][0].center[2] - cands[i][0].size[k] / 2) for i in g)
+        top = min(_z_range(cands[i][0])[0] for i in g)
         size = low.size.copy()
-        size[k] = top - float(low.center[2] - low.size[k] / 2)
+        size[k] = top - _z_range(low)[0]
         new_id = f"hidden{n}"
         while new_id in current.index:
             new_id += "_"
@@ -653,20 +660,15 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
         cut = {}
         for i in g:  # each box down to the common top (at most the merge gap)
             c = cands[i][0]
-            kk = int(np.argmax(np.abs(c.rotation[2])))
-            grow = float(c.center[2] - c.size[kk] / 2) - top
+            grow = _z_range(c)[0] - top
             sz = c.size.copy()
-            sz[kk] += grow
+            sz[int(np.argmax(np.abs(c.rotation[2])))] += grow
             cut[c.id] = c.with_(center=c.center - np.array([0, 0, grow / 2]), size=sz)
         # a part of the multi-part object it touches most (the sofa around its seat)
         near = {}
         for c in current.cuboids:
-            if c.object in objects and c.id not in cut:
-                sep, _, _ = sat_separation(support.center[None], support.rotation[None],
-                                           support.size[None] / 2, c.center[None],
-                                           c.rotation[None], c.size[None] / 2, np.zeros(1))
-                if sep[0] < 0.02:
-                    near[c.object] = near.get(c.object, 0) + 1
+            if c.object in objects and c.id not in cut and _gap(support, c) < 0.02:
+                near[c.object] = near.get(c.object, 0) + 1
         if near:
             support = support.with_(object=max(sorted(near), key=lambda x: near[x]))
         elif len(g) > 1:  # under several boxes at one height: their own support
