@@ -2,7 +2,7 @@
 
 A part with no points cannot be extended into existence.  Where an object shows a
 repeated structure, the missing copy is added: an object with a top (its part of
-largest horizontal area) and exactly three legs below it (upright parts taller than
+largest horizontal area) and two or three legs below it (upright parts taller than
 wide) whose positions in the top's frame occupy two or three of its four quadrants
 gets the missing legs: each is the diagonally opposite leg turned half a turn about the
 top's vertical axis (independent of the top's yaw), or, when that leg is missing too, a
@@ -59,7 +59,7 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
             by_object.setdefault(c.object, []).append(k)
     added: list[Cuboid] = []
     for obj, members in sorted(by_object.items()):
-        if len(members) < 4:
+        if len(members) < 3:  # a top and at least two legs
             continue
         cubs = [arr.cuboids[k] for k in members]
         areas = []

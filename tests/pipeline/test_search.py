@@ -256,3 +256,17 @@ def test_a_lone_box_seen_only_at_its_top_stays_one_tall_box():
     assert res.report["hidden_supports"] == []
     np.testing.assert_allclose(res.arrangement.cuboid("crate").size, [0.4, 0.4, 0.6], atol=1e-9)
     assert _types(res.arrangement) == {("crate", "ground"): "touch"}
+
+
+def test_a_table_seen_with_two_legs_gets_the_other_two_and_stands_on_four():
+    # the top and two adjacent legs are all that was seen: the missing pair is
+    # hallucinated, and the table stands on four legs with no glue to the floor
+    arr = _table(leg_gap=0.0, legs=(0, 1))
+    res = imagine(arr, budget=5)
+    assert len(res.report["hallucinated"]) == 2
+    got = sorted(tuple(np.round(res.arrangement.cuboid(i).center[:2], 9))
+                 for i in res.report["hallucinated"])
+    np.testing.assert_allclose(got, [(-0.55, 0.35), (0.55, 0.35)], atol=1e-9)
+    assert res.arrangement.stability.stable and res.report["fixed_chosen"] == 0
+    t = _types(res.arrangement)
+    assert sum(v == "touch" for k, v in t.items() if "ground" in k) == 4
