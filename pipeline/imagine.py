@@ -146,6 +146,8 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
             if (ci.object is not None and ci.object == cj.object and _same_axes(ci, cj)
                     and _same_part(ci, cj)):
                 cubs[i], cubs[j] = _merge(ci, cj), None
+            elif not _penetrating(ci, cj):
+                continue  # an earlier cut of this round already cleared them
             else:
                 ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
                 by_share = min(ri, rj) > 0.5
@@ -341,6 +343,14 @@ def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
         return float("inf")
     proj = np.concatenate(proj)
     return float(proj.max() - proj.min())
+
+
+def _penetrating(a: Cuboid, b: Cuboid) -> bool:
+    """Whether two boxes overlap by more than their contact tolerance."""
+    tol = pair_tolerance(a.size[None], b.size[None])
+    sep, _, _ = sat_separation(a.center[None], a.rotation[None], a.size[None] / 2,
+                               b.center[None], b.rotation[None], b.size[None] / 2, tol)
+    return bool(sep[0] < -tol[0])
 
 
 def _same_part(a: Cuboid, b: Cuboid) -> bool:

@@ -264,3 +264,22 @@ def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     assert n >= 1 and not find_contacts(out).penetrations
     for c in books:  # every book keeps at least a third of every extent (not microns)
         assert np.all(out.cuboid(c.id).size >= c.size / 3), c.id
+
+
+def test_a_panel_cut_clear_of_one_book_is_not_cut_again_for_the_next():
+    # a shelf's side panel fitted 7.7 cm thick from noisy points, with two books beside
+    # it whose noisy boxes reach 1 cm into it.  Clearing the first book moves the panel's
+    # inner face by a centimetre, which also clears the second: the panel keeps its
+    # height and depth (it used to be cut again along another face for every book the
+    # round had listed, and lost half its height).
+    panel = _observed(box("panel", (0.0385, 0.1175, 0.7835), (0.077, 0.235, 1.467),
+                          object="shelf"))
+    books = [_observed(box(f"book{k}", (-0.01, y, z), (0.04, 0.126, 0.22), object=f"book{k}"))
+             for k, (y, z) in enumerate([(0.063, 0.2), (0.09, 0.55), (0.08, 0.9)])]
+    out, n = repair_overlaps(Arrangement((panel, *books), (ground(),)))
+    assert n >= 1 and not find_contacts(out).penetrations
+    p = out.cuboid("panel")
+    assert p.size[1] == pytest.approx(0.235) and p.size[2] == pytest.approx(1.467)
+    assert 0.077 - 0.02 < p.size[0] < 0.077
+    for b in books:  # the books, losing more of themselves, keep their boxes
+        assert np.array_equal(out.cuboid(b.id).size, b.size)
