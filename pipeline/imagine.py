@@ -148,6 +148,8 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                 cubs[i], cubs[j] = _merge(ci, cj), None
             elif not _penetrating(ci, cj):
                 continue  # an earlier cut of this round already cleared them
+            elif (rest := _resting_cut(ci, cj)) is not None:
+                cubs[i], cubs[j] = rest
             else:
                 ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
                 by_share = min(ri, rj) > 0.5
@@ -343,6 +345,52 @@ def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
         return float("inf")
     proj = np.concatenate(proj)
     return float(proj.max() - proj.min())
+
+
+def _vertical_axis(c: Cuboid) -> int | None:
+    """The local axis of an upright box that points up or down (None when tilted)."""
+    ax = int(np.argmax(np.abs(c.rotation[2])))
+    return ax if abs(c.rotation[2, ax]) > 0.99 else None
+
+
+def _resting_cut(a: Cuboid, b: Cuboid) -> tuple[Cuboid, Cuboid] | None:
+    """Clear the overlap of a box resting on a broader one at the face they share.
+
+    When one upright box's bottom lies in the upper three quarters of a broader upright box
+    at most half as tall again and its top above it (a book whose noisy bottom reaches
+    into the thick-looking board under it; not two books side by side), the
+    overlap is depth noise at the interface they rest on: the upper box's bottom rises
+    (by at most half of its height; beyond that the lower box's top drops by half the
+    overlap and the upper's bottom rises by the other half).  Cutting the board's end
+    instead shortened it one book at a time until it no longer reached its side panel.  Returns the two boxes ``(a, b)`` after
+    the cut, or None when the pair is not of that kind or cannot be cleared that way.
+    """
+    ax_a, ax_b = _vertical_axis(a), _vertical_axis(b)
+    if ax_a is None or ax_b is None:
+        return None
+    za, zb = _z_range(a), _z_range(b)
+    if za[0] + za[1] < zb[0] + zb[1]:  # a is the lower one
+        r = _resting_cut(b, a)
+        return None if r is None else (r[1], r[0])
+    (lo_u, hi_u), (lo_l, hi_l) = za, zb
+    area_u = float(np.prod(np.delete(a.size, ax_a)))
+    area_l = float(np.prod(np.delete(b.size, ax_b)))
+    h_u, h_l = hi_u - lo_u, hi_l - lo_l
+    if not (area_l >= area_u and h_l <= 1.5 * h_u and lo_l + 0.25 * h_l < lo_u < hi_l < hi_u):
+        return None
+    tol = float(pair_tolerance(a.size[None], b.size[None])[0])
+    cut = hi_l - lo_u + 0.25 * tol
+    if cut <= 0.5 * a.size[ax_a]:  # the upper box's bottom rises
+        cut_u, cut_l = cut, 0.0
+    elif 0.5 * cut <= 0.5 * min(a.size[ax_a], b.size[ax_b]):  # both give way
+        cut_u = cut_l = 0.5 * cut
+    else:
+        return None
+    sa, sb = a.size.copy(), b.size.copy()
+    sa[ax_a] -= cut_u
+    sb[ax_b] -= cut_l
+    return (a.with_(center=a.center + [0.0, 0.0, cut_u / 2], size=sa),
+            b if cut_l == 0.0 else b.with_(center=b.center - [0.0, 0.0, cut_l / 2], size=sb))
 
 
 def _penetrating(a: Cuboid, b: Cuboid) -> bool:

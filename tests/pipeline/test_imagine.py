@@ -283,3 +283,47 @@ def test_a_panel_cut_clear_of_one_book_is_not_cut_again_for_the_next():
     assert 0.077 - 0.02 < p.size[0] < 0.077
     for b in books:  # the books, losing more of themselves, keep their boxes
         assert np.array_equal(out.cuboid(b.id).size, b.size)
+
+
+def test_books_whose_noisy_bottoms_reach_into_their_board_rest_on_it_not_shorten_it():
+    # a 1 m board fitted 12 cm thick from far-away noisy points (top at 0.16), books at
+    # its end whose boxes reach 2-9 cm into it, one yawed by 30 degrees.  Cutting the
+    # board's end for each book shortened it until it no longer reached its side panel;
+    # the books' bottoms give way instead (the overlap is noise at the face they rest on).
+    board = _observed(box("board", (0.0, 0.0, 0.10), (1.0, 0.25, 0.12), object="shelf"))
+    books = [_observed(box(f"book{k}", (x, 0.0, z0 + 0.12), (0.03, 0.2, 0.24),
+                           yaw=np.radians(yaw), object=f"book{k}"))
+             for k, (x, z0, yaw) in enumerate([(0.50, 0.075, 30.0), (0.32, 0.14, 0.0),
+                                              (0.25, 0.12, 0.0)])]
+    out, n = repair_overlaps(Arrangement((board, *books), (ground(),)))
+    assert n >= 3 and not find_contacts(out).penetrations
+    assert np.array_equal(out.cuboid("board").size, board.size)  # whole length and depth
+    for b in books:
+        c = out.cuboid(b.id)
+        bottom = c.center[2] - c.size[2] / 2
+        assert 0.16 <= bottom < 0.16 + 0.01  # resting on the board's top, within its tolerance
+        assert c.center[2] + c.size[2] / 2 == pytest.approx(b.center[2] + b.size[2] / 2)
+
+
+def test_a_box_reaching_more_than_half_into_its_board_shares_the_cut_with_it():
+    # the box would lose 8 of its 12 cm: the board's top drops by half the overlap and
+    # the box's bottom rises by the other half
+    board = _observed(box("board", (0.0, 0.0, 0.10), (1.0, 0.25, 0.12), object="shelf"))
+    item = _observed(box("item", (0.0, 0.0, 0.14), (0.2, 0.1, 0.12), object="item"))
+    out, _ = repair_overlaps(Arrangement((board, item), (ground(),)))
+    assert not find_contacts(out).penetrations
+    b, i = out.cuboid("board"), out.cuboid("item")
+    top, bottom = b.center[2] + b.size[2] / 2, i.center[2] - i.size[2] / 2
+    assert top == pytest.approx(0.12, abs=0.002) and bottom == pytest.approx(0.12, abs=0.004)
+    assert b.size[0] == 1.0 and i.size[0] == pytest.approx(0.2)
+
+
+def test_books_side_by_side_are_not_taken_for_one_resting_on_the_other():
+    # two books 2 cm apart in height overlapping sideways by noise: they give way
+    # sideways, each keeping its height (not the taller one's bottom raised over the other)
+    a = _observed(box("a", (0.0, 0.0, 0.12), (0.04, 0.2, 0.24), object="a"))
+    b = _observed(box("b", (0.035, 0.0, 0.13), (0.04, 0.2, 0.22), object="b"))
+    out, _ = repair_overlaps(Arrangement((a, b), (ground(),)))
+    assert not find_contacts(out).penetrations
+    assert out.cuboid("a").size[2] == pytest.approx(0.24)
+    assert out.cuboid("b").size[2] == pytest.approx(0.22)
