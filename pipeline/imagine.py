@@ -622,6 +622,9 @@ HIDDEN_DROP_REL = 1.5
 HIDDEN_MIN_DROP = 0.15
 #: Hidden supports side by side (gap below this, metres) with tops this close merge.
 HIDDEN_MERGE_GAP = 0.05
+#: A hidden support reaches out to the parts of a multi-part object around it across at
+#: most this fraction of its widest horizontal extent (a seat to its sofa's arms and back).
+HIDDEN_REACH_REL = 0.25
 
 
 def _z_range(c: Cuboid) -> tuple[float, float]:
@@ -637,7 +640,53 @@ def _gap(a: Cuboid, b: Cuboid) -> float:
     return float(sep[0])
 
 
-def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None = None
+def _reach_out(support: Cuboid, others: list[Cuboid], reach: float,
+               views: list[DepthView], margin: float) -> Cuboid:
+    """``support`` with each horizontal face pushed out to the nearest of ``others`` it
+    faces (overlapping it sideways and in height) when that is at most ``reach`` away
+    and no view saw the added slab empty: a seat hidden under cushions meets the arms
+    and the back around it."""
+    from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
+
+    out = support
+    for axis in range(3):
+        if abs(support.rotation[2, axis]) > 0.5:
+            continue
+        for side in (0, 1):
+            u = out.rotation[:, axis] * (1.0 if side else -1.0)
+            face = float(out.center @ u + out.size[axis] / 2)
+            best = None
+            for o in others:
+                if _overlap_across(out, o, u) and (gap := float((o.corners() @ u).min()) - face) > 0:
+                    best = gap if best is None else min(best, gap)
+            if best is None or best > reach:
+                continue
+            tmp = Arrangement((out,), ())
+            x = Extension(0, axis, side, best)
+            if views and visible_free_fraction(slab_samples(tmp, x), views,
+                                               margin) > FREE_FRACTION_MAX:
+                continue
+            size = out.size.copy()
+            size[axis] += best
+            out = out.with_(center=out.center + u * best / 2, size=size)
+    return out
+
+
+def _overlap_across(a: Cuboid, b: Cuboid, u: np.ndarray) -> bool:
+    """Whether ``b`` overlaps ``a`` in every direction of ``a``'s axes but ``u``'s."""
+    ca, cb = a.corners(), b.corners()
+    for ax in range(3):
+        w = a.rotation[:, ax]
+        if abs(float(w @ u)) > 0.5:
+            continue
+        pa, pb = ca @ w, cb @ w
+        if pb.max() <= pa.min() or pb.min() >= pa.max():
+            return False
+    return True
+
+
+def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
+                    views: list[DepthView] | None = None, margin: float = 0.0
                     ) -> tuple[Arrangement, list[str]]:
     """Give a box that the search stretched down to the floor a support of its own.
 
@@ -722,7 +771,12 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
             sz = c.size.copy()
             sz[int(np.argmax(np.abs(c.rotation[2])))] += grow
             cut[c.id] = c.with_(center=c.center - np.array([0, 0, grow / 2]), size=sz)
-        # a part of the multi-part object it touches most (the sofa around its seat)
+        # a part of the multi-part object it touches most (the sofa around its seat),
+        # reaching out to that object's parts across hidden space
+        around = [c for c in current.cuboids if c.object in objects and c.id not in cut]
+        reach = HIDDEN_REACH_REL * float(max(support.size[a] for a in range(3)
+                                             if abs(support.rotation[2, a]) <= 0.5))
+        support = _reach_out(support, around, reach, views or [], margin)
         near = {}
         for c in current.cuboids:
             if c.object in objects and c.id not in cut and _gap(support, c) < 0.02:
@@ -950,7 +1004,8 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
         final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
                          threshold=threshold)
-    final, hidden = hidden_supports(final, mu=mu, threshold=threshold)
+    final, hidden = hidden_supports(final, mu=mu, threshold=threshold, views=views,
+                                    margin=margin)
     timings["relax"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -248,6 +248,27 @@ def test_cushions_grown_to_the_floor_get_the_hidden_seat_of_their_sofa():
     assert ("cushion0", "ground") not in t
 
 
+def test_a_hidden_seat_reaches_out_to_the_arms_and_back_its_cushions_fall_short_of():
+    # the cushions' boxes stop 12 cm short of each arm and 5 cm short of the back (their
+    # seen tops are narrower than the seat): the hidden seat under them reaches out
+    # across that hidden space, meets the back and both arms, and is fused to them
+    back = box("back", (0, 0.4, 0.425), (2.0, 0.2, 0.85), object="sofa")
+    arms = [box(f"arm{k}", (s * 0.9, 0, 0.3), (0.2, 0.6, 0.6), object="sofa")
+            for k, s in enumerate((-1, 1))]
+    cushions = [box(f"cushion{k}", (s * 0.34, -0.025, 0.405), (0.68, 0.55, 0.09),
+                    object=f"cushion{k}") for k, s in enumerate((-1, 1))]
+    res = imagine(Arrangement((back, *arms, *cushions), (ground(),)), budget=5)
+    out = res.arrangement
+    assert res.report["hidden_supports"] == ["hidden0"] and out.stability.stable
+    seat = out.cuboid("hidden0")
+    assert seat.object == "sofa"
+    np.testing.assert_allclose(seat.center, [0, 0, 0.18], atol=1e-9)
+    np.testing.assert_allclose(seat.size, [1.6, 0.6, 0.36], atol=1e-9)
+    t = _types(out)
+    assert t[("back", "hidden0")] == t[("arm0", "hidden0")] == t[("arm1", "hidden0")] == "fixed"
+    assert t[("cushion0", "hidden0")] == t[("cushion1", "hidden0")] == "touch"
+
+
 def test_a_lone_box_seen_only_at_its_top_stays_one_tall_box():
     # nothing says a hidden support is separate from the box above it: one box, grown
     arr = Arrangement((box("crate", (0, 0, 0.55), (0.4, 0.4, 0.1), object="crate"),),
