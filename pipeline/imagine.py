@@ -534,6 +534,63 @@ def connect_objects(final: Arrangement, initial: Arrangement, edges, mu: float =
     return final, joins
 
 
+def anchor_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.7,
+                 threshold: float | None = None) -> tuple[Arrangement, list[str]]:
+    """Fix to a wall every part of an object that the wall holds.
+
+    An object fixed to a wall (a wall shelf's board) hangs there as one rigid body; its
+    other parts against that wall (the brackets under the board) are fixed to it too.  A
+    part whose face toward the wall stops short of it by at most its own extent there
+    (a bracket seen only at its front) is extended to the wall first, as the candidate
+    extension put it (space no view saw empty, nothing entered).  Each change is kept
+    when the arrangement still stands.  Returns the arrangement and the ``part|wall``
+    pairs fixed.
+    """
+    from .search import finalize
+
+    objects = {c.id: c.object for c in final.cuboids}
+    held: dict[str, set[str]] = {}
+    for c in final.contacts:
+        for a, b in ((c.a, c.b), (c.b, c.a)):
+            if (c.type == "fixed" and b.startswith("wall:") and objects.get(a) is not None):
+                held.setdefault(objects[a], set()).add(b)
+    if not held:
+        return final, []
+    reach = {}
+    for e in edges:
+        if isinstance(e.b, str) and e.b.startswith("wall:"):
+            ext = [o for o in e.options if o.type == "fixed" and len(o.extensions) == 1]
+            x = ext[0].extensions[0] if ext else None
+            if x is not None and x.length <= float(initial.sizes[x.box, x.axis]):
+                reach[(initial.cuboids[e.a].id, e.b)] = x
+    done: list[str] = []
+    for obj in sorted(held):
+        for wall in sorted(held[obj]):
+            for m in [c.id for c in final.cuboids if c.object == obj]:
+                fixed = [c for c in final.contacts if c.type == "fixed"]
+                if any({c.a, c.b} == {m, wall} for c in fixed):
+                    continue
+                touching = find_contacts(final).lookup()
+                trial = final
+                if tuple(sorted((m, wall))) not in touching:
+                    if (m, wall) not in reach:
+                        continue
+                    trial = _push_face(final, initial, reach[(m, wall)])
+                    cs = find_contacts(trial)
+                    if (any(m in (a, b) for a, b, _ in cs.penetrations)
+                            or tuple(sorted((m, wall))) not in cs.lookup()):
+                        continue
+                try:
+                    cand = finalize(trial, [*fixed, Contact(m, wall, "fixed")], mu=mu,
+                                    threshold=threshold)
+                except InputError:
+                    continue
+                if cand.stability is not None and cand.stability.stable:
+                    final = cand
+                    done.append(f"{m}|{wall}")
+    return final, done
+
+
 def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
                 tilt_deg: float | None = None, deadline: float = float("inf"),
                 max_steps: int = 8, max_group: int = 16, views: list[DepthView] | None = None,
@@ -1004,6 +1061,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
         final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
                          threshold=threshold)
+    final, anchored = anchor_parts(final, arr, edges, mu=mu, threshold=threshold)
     final, hidden = hidden_supports(final, mu=mu, threshold=threshold, views=views,
                                     margin=margin)
     timings["relax"] = time.perf_counter() - t
@@ -1044,6 +1102,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "joined_parts": joined_parts,
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
+        "anchored_parts": anchored,
         "added_volume_m3": result.added_volume,
         "refine": None if refined is None else {
             "energy_before": refined.energy_before, "energy_after": refined.energy_after,

@@ -327,3 +327,46 @@ def test_books_side_by_side_are_not_taken_for_one_resting_on_the_other():
     assert not find_contacts(out).penetrations
     assert out.cuboid("a").size[2] == pytest.approx(0.24)
     assert out.cuboid("b").size[2] == pytest.approx(0.22)
+
+
+def test_the_parts_of_a_shelf_hung_on_a_wall_are_fixed_to_it_and_a_short_bracket_reaches_it():
+    # a board fixed to the wall and two brackets under it, fused to the board: one
+    # bracket against the wall, one seen 3 cm short of it.  The object hangs on the wall
+    # as one body: both brackets are fixed to the wall, the short one extended to it.
+    from pipeline.extend import candidate_edges
+    from pipeline.imagine import anchor_parts
+    from pipeline.model import Support
+    from pipeline.search import finalize
+
+    wall = Support("wall:0", np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    board = box("board", (0, 0.15, 1.2), (0.8, 0.3, 0.02), object="ws")
+    brackets = [box("br0", (-0.3, 0.09, 1.13), (0.025, 0.18, 0.12), object="ws"),
+                box("br1", (0.3, 0.105, 1.13), (0.025, 0.15, 0.12), object="ws")]
+    initial = Arrangement((board, *brackets), (ground(), wall))
+    fixed = [Contact("board", "wall:0", "fixed"), Contact("board", "br0", "fixed"),
+             Contact("board", "br1", "fixed")]
+    final = finalize(initial, fixed)
+    out, done = anchor_parts(final, initial, candidate_edges(initial))
+    assert sorted(done) == ["br0|wall:0", "br1|wall:0"]
+    types = {tuple(sorted((c.a, c.b))): c.type for c in out.contacts}
+    assert types[("br0", "wall:0")] == types[("br1", "wall:0")] == "fixed"
+    br1 = out.cuboid("br1")
+    assert br1.center[1] - br1.size[1] / 2 == pytest.approx(0.0, abs=1e-9)  # reaches the wall
+    assert br1.center[1] + br1.size[1] / 2 == pytest.approx(0.18)  # its seen front stays
+    assert out.stability.stable
+
+
+def test_a_shelf_standing_on_the_floor_is_not_fixed_to_the_wall_it_touches():
+    # only an object the wall already holds is anchored: a floor-standing shelf whose
+    # panel touches the wall keeps a touch
+    from pipeline.extend import candidate_edges
+    from pipeline.imagine import anchor_parts
+    from pipeline.model import Support
+    from pipeline.search import finalize
+
+    wall = Support("wall:0", np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    panel = box("panel", (0, 0.15, 0.5), (0.02, 0.3, 1.0), object="shelf")
+    initial = Arrangement((panel,), (ground(), wall))
+    final = finalize(initial, [])
+    out, done = anchor_parts(final, initial, candidate_edges(initial))
+    assert done == [] and out is final
