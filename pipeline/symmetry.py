@@ -6,7 +6,9 @@ largest horizontal area) and two or three legs below it (upright parts taller th
 wide) whose positions in the top's frame occupy two or three of its four quadrants
 gets the missing legs: each is the diagonally opposite leg turned half a turn about the
 top's vertical axis (independent of the top's yaw), or, when that leg is missing too, a
-leg of a neighbouring quadrant mirrored.  The new part
+leg of a neighbouring quadrant mirrored.  An object of just a top and one part under
+one end of it (a wall shelf's board and one of its brackets, a desk's top and one side)
+gets that part's mirror image under the other end.  The new part
 is kept only if it does not interpenetrate anything and, when a depth image exists,
 the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
 no observed box, and takes part in the search like any other cuboid.
@@ -50,16 +52,47 @@ def _free(arr: Arrangement, cand: Cuboid) -> bool:
     return bool(np.all(sep >= -tol))
 
 
+def _mirror_support(top: Cuboid, part: Cuboid, obj: str, n: int) -> Cuboid | None:
+    """The mirror image of ``part`` across the plane through ``top``'s centre across its
+    longer horizontal axis, when ``part`` stands under ``top`` (its top within a tenth of
+    the top's length of the top's bottom, its centre inside the top's footprint) towards
+    one end (off the centre by over a quarter of the top's length): the second bracket
+    of a wall shelf's board, the second side of a desk."""
+    zc = np.abs(top.rotation[2, :])
+    up = int(np.argmax(zc))
+    horiz = [k for k in range(3) if k != up]
+    long_ax = max(horiz, key=lambda k: float(top.size[k]))
+    length = float(top.size[long_ax])
+    p = top.rotation.T @ (part.center - top.center)
+    h_part, _ = _upright_extent(part)
+    top_bottom = float(top.center[2] - top.size[up] / 2)
+    part_top = float(part.center[2] + h_part / 2)
+    inside = all(abs(p[k]) <= top.size[k] / 2 for k in horiz)
+    if not (inside and abs(part_top - top_bottom) <= 0.1 * length
+            and abs(p[long_ax]) > 0.25 * length):
+        return None
+    p[long_ax] = -p[long_ax]
+    axis = top.rotation[:, long_ax]
+    reflect = np.eye(3) - 2.0 * np.outer(axis, axis)
+    R = reflect @ part.rotation
+    # a reflection flips handedness: turn the image's axis along the top's long axis back
+    k = int(np.argmax(np.abs(R.T @ axis)))
+    R[:, k] = -R[:, k]
+    return Cuboid(f"h{n}_{obj}", top.center + top.rotation @ p, R, part.size.copy(),
+                  part.density, obj, None, {"hallucinated": True, "points": 0})
+
+
 def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                 ) -> tuple[Arrangement, list[str]]:
-    """Add mirrored legs where two or three are seen; returns (arrangement, new ids)."""
+    """Add mirrored legs where two or three are seen, and the mirror image of a top's one
+    support under one end; returns (arrangement, new ids)."""
     by_object: dict[str, list[int]] = {}
     for k, c in enumerate(arr.cuboids):
         if c.object is not None:
             by_object.setdefault(c.object, []).append(k)
     added: list[Cuboid] = []
     for obj, members in sorted(by_object.items()):
-        if len(members) < 3:  # a top and at least two legs
+        if len(members) < 2:
             continue
         cubs = [arr.cuboids[k] for k in members]
         areas = []
@@ -76,6 +109,13 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
             h, w = _upright_extent(c)
             if h > 1.5 * w and c.center[2] < top.center[2]:
                 legs.append(c)
+        if len(members) == 2:  # a top and one part under it: its mirror image
+            new = _mirror_support(top, next(c for c in cubs if c is not top), obj, len(added))
+            if new is not None and _free(arr.with_(cuboids=arr.cuboids + tuple(added)), new) \
+                    and not (views and visible_free_fraction(_box_samples(new), views, margin)
+                             > FREE_FRACTION_MAX):
+                added.append(new)
+            continue
         if not 2 <= len(legs) <= 3:
             continue
         local = np.stack([top.rotation.T @ (leg.center - top.center) for leg in legs])

@@ -221,6 +221,34 @@ def test_missing_legs_are_placed_by_the_half_turn_whatever_the_tops_yaw():
     np.testing.assert_allclose(got, [(-0.55, 0.35), (0.55, 0.35)], atol=1e-9)
 
 
+@pytest.mark.parametrize("yaw", [0.0, 0.3, -1.2])
+def test_a_board_with_one_bracket_seen_gets_its_mirror_image_under_the_other_end(yaw):
+    from pipeline.symmetry import hallucinate
+
+    board = box("board", (0.4, 0.15, 1.2), (0.8, 0.3, 0.02), object="ws", yaw=yaw)
+    local = np.array([-0.3, -0.06, -0.07])
+    br = box("br0", (0, 0, 0), (0.025, 0.18, 0.12), object="ws", yaw=yaw)
+    br = br.with_(center=board.center + board.rotation @ local)
+    out, new = hallucinate(Arrangement((board, br), (ground(),)), [])
+    assert len(new) == 1
+    image = out.cuboid(new[0])
+    np.testing.assert_allclose(board.rotation.T @ (image.center - board.center),
+                               [0.3, -0.06, -0.07], atol=1e-12)
+    np.testing.assert_allclose(image.size, br.size)
+    assert np.linalg.det(image.rotation) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.abs(image.rotation), np.abs(br.rotation), atol=1e-12)
+    assert image.object == "ws" and image.extra["hallucinated"] and image.observed is None
+
+
+def test_a_part_under_the_middle_of_a_top_has_no_mirror_image():
+    from pipeline.symmetry import hallucinate
+
+    top = box("top", (0, 0, 1.0), (1.0, 0.5, 0.04), object="stand")
+    post = box("post", (0.1, 0, 0.49), (0.08, 0.08, 0.98), object="stand")  # 10 cm off centre
+    out, new = hallucinate(Arrangement((top, post), (ground(),)), [])
+    assert new == [] and out.cuboids == (top, post)
+
+
 def test_cushions_grown_to_the_floor_get_the_hidden_seat_of_their_sofa():
     # the seat under two cushions was never seen: the search holds each cushion up by
     # growing it 0.36 m to the floor; instead both keep their seen 9 cm and rest on one
