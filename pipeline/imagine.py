@@ -225,8 +225,8 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                 size[axis] += length
                 cubs = list(arr.cuboids)
                 cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
-                trial = arr.with_(cuboids=tuple(cubs))
-                if any(c.id in (a, b) for a, b, _ in find_contacts(trial).penetrations):
+                trial = _settle_resting(arr.with_(cuboids=tuple(cubs)), c.id)
+                if trial is None:
                     break
                 best = trial
             if best is not None:
@@ -234,6 +234,34 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                 deepened.append(c.id)
             break
     return arr, deepened
+
+
+def _settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
+    """``arr`` with the overlaps of box ``cid`` cleared where they are a box resting on
+    another (:func:`_resting_cut`) or where ``cid`` reaches into the other by at most a
+    tenth of its extent (the plank on a block that a deepening made reach under it);
+    None when another overlap remains."""
+    for _ in range(4):
+        pens = [(a, b) for a, b, _ in find_contacts(arr).penetrations if cid in (a, b)]
+        if not pens:
+            return arr
+        cubs = list(arr.cuboids)
+        for a, b in pens:
+            if b.startswith(("ground", "wall:")):
+                return None
+            ia, ib = arr.index[a], arr.index[b]
+            rest = _resting_cut(cubs[ia], cubs[ib])
+            if rest is not None:
+                cubs[ia], cubs[ib] = rest
+                continue
+            # else the deepened box gives way where it reaches least far, if by little
+            k, other = (ia, cubs[ib]) if a == cid else (ib, cubs[ia])
+            face = _overlap_face(cubs[k], other)
+            if face is None or face[0] > 0.1 * float(cubs[k].size[face[1]]):
+                return None
+            cubs[k] = _shrink_against(cubs[k], other)
+        arr = arr.with_(cuboids=tuple(cubs))
+    return None
 
 
 #: :func:`join_parts` trims a box in the way of a join by at most this much (metres) or

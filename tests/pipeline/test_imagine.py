@@ -370,3 +370,27 @@ def test_a_shelf_standing_on_the_floor_is_not_fixed_to_the_wall_it_touches():
     final = finalize(initial, [])
     out, done = anchor_parts(final, initial, candidate_edges(initial))
     assert done == [] and out is final
+
+
+def test_a_block_seen_face_on_is_deepened_under_the_plank_that_rests_on_it():
+    # the plank's noisy bottom reaches 4 mm into the block's seen front: deepening the
+    # block makes that a true overlap, which is cleared at the face they share instead
+    # of stopping the deepening (the block stayed a 4 cm sliver that could stand only
+    # glued to the floor)
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.5, 1.5), (0.0, 0.0, 0.35))
+    true_block = box("block", (0, 0.1, 0.3), (0.22, 0.22, 0.6))
+    plank = box("plank", (0, 0.1, 0.62), (1.2, 0.22, 0.05))
+    views = [DepthView(_depth_of_boxes([true_block, plank], T, intr), intr, T)]
+    seen = box("block", (0, 0.01, 0.302), (0.22, 0.02, 0.604))  # its front, 2 cm deep
+    out, ids = deepen_thin_boxes(Arrangement((seen, plank), (ground(),)), views)
+    assert "block" in ids and not find_contacts(out).penetrations
+    b = out.cuboid("block")
+    assert b.size[1] == pytest.approx(0.22) and b.center[1] == pytest.approx(0.11)
+    top = b.center[2] + b.size[2] / 2
+    bottom = out.cuboid("plank").center[2] - out.cuboid("plank").size[2] / 2
+    assert abs(top - bottom) < 1e-3  # still resting on each other
