@@ -394,3 +394,47 @@ def test_a_block_seen_face_on_is_deepened_under_the_plank_that_rests_on_it():
     top = b.center[2] + b.size[2] / 2
     bottom = out.cuboid("plank").center[2] - out.cuboid("plank").size[2] / 2
     assert abs(top - bottom) < 1e-3  # still resting on each other
+
+
+def _two_books(gap_true, gap_fitted, eye=(0.0, -1.5, 0.9)):
+    """Two upright books side by side (x), their true depth image from ``eye``, and their
+    fitted boxes ``gap_fitted`` apart, after the search (finalized, stable)."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.search import finalize
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at(eye, (0.0, 0.0, 0.15))
+    true = [box("a", (-0.02 - gap_true / 2, 0, 0.15), (0.04, 0.2, 0.3)),
+            box("b", (0.02 + gap_true / 2, 0, 0.15), (0.04, 0.2, 0.3))]
+    views = [DepthView(_depth_of_boxes(true, T, intr), intr, T)]
+    fitted = Arrangement((box("a", (-0.02 - gap_fitted / 2, 0, 0.15), (0.04, 0.2, 0.3), object="a"),
+                          box("b", (0.02 + gap_fitted / 2, 0, 0.15), (0.04, 0.2, 0.3), object="b")),
+                         (ground(),))
+    return finalize(fitted, []), views
+
+
+def test_a_gap_between_books_that_no_view_saw_into_is_closed():
+    # the books touch; their fitted boxes ended 12 mm apart.  Seen from the front the gap
+    # lies behind their spines: nothing says it is empty, and it is closed
+    from pipeline.imagine import close_hidden_gaps
+
+    final, views = _two_books(0.0, 0.012)
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == ["a|b"] and not find_contacts(out).penetrations
+    assert ("a", "b") in find_contacts(out).lookup() and out.stability.stable
+    xs = sorted(c.center[0] + s * c.size[0] / 2 for c in out.cuboids for s in (-1, 1))
+    assert xs[1] == pytest.approx(xs[2], abs=1e-9)  # face to face
+    # without a depth view nothing says where the gap is hidden: left alone
+    out, closed = close_hidden_gaps(final, [])
+    assert closed == [] and out is final
+
+
+def test_a_gap_the_camera_saw_the_floor_through_stays_open():
+    # the books truly stand 15 mm apart and the camera looks down into the gap: the
+    # floor seen between them says the gap is empty
+    from pipeline.imagine import close_hidden_gaps
+
+    final, views = _two_books(0.015, 0.015, eye=(0.0, -0.4, 1.6))
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == [] and out is final
