@@ -5,7 +5,7 @@ its pair and its type, ``touch`` or ``fixed``, are; untyped: the pair only), per
 family and for all, from single Kinect-noised views, plus a multi-view row (3 views fused:
 the paper's KinectFusion row), printed next to the paper's figures.
 
-Scenes: ``--n`` per family (default 2; ``--quick``: 1, stack only), seeds
+Scenes: ``--n`` per family (default 4; ``--quick``: 1, stack only), seeds
 :func:`eval.suites._scenes.scene_seed` (1000 + 100 * --seed + i).  Outputs under ``--out``:
 ``table1.md`` / ``.csv`` (the table), ``table1_physics.md`` / ``.csv`` (per row: the
 fraction of results that stand in the analytic check, MuJoCo and PyBullet, and the
@@ -27,7 +27,7 @@ QUICK_FAMILIES = ("stack",)
 MULTIVIEW_FAMILIES = ("stack", "table", "chair", "shelf")
 QUICK_MULTIVIEW_FAMILIES = ("stack",)
 MULTIVIEW = 3
-DEFAULT_N = 2
+DEFAULT_N = 4
 #: Engines every result is settled in (``table1_physics``).
 ENGINES = ("mujoco", "pybullet")
 
