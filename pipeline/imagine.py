@@ -19,7 +19,10 @@
    between different objects are dropped where refining the boxes makes them stand
    without (:func:`relax_fixed`), and a box stretched to the floor far below what was
    seen of it rests on a hidden support instead (:func:`hidden_supports`: a sofa's seat);
-5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
+5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy;
+6. *closing* (:func:`pipeline.snap.close_gaps`): contacts between different rigid bodies,
+   touching within the contact tolerance, are made exact (what the engines load is what
+   the statics judged).
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
 dict with counts, statistics and timings per step.  ``budget`` seconds bound the search,
@@ -42,6 +45,7 @@ from .extend import DepthView, candidate_edges, depth_noise, prune_by_visibility
 from .model import Arrangement, Contact, Cuboid, ObservedBox
 from .refine import refine
 from .search import search
+from .snap import close_gaps
 from .symmetry import hallucinate
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
@@ -906,6 +910,22 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         final = finalize(refined.arrangement, fixed, mu=mu, threshold=threshold)
     timings["refine"] = time.perf_counter() - t
 
+    # the faces the statics counted as touching are made to touch (the engines see the
+    # file's geometry: a gap within the contact tolerance is a drop, an overlap a push)
+    t = time.perf_counter()
+    closed, gap_closed = close_gaps(final)
+    if closed is not final:
+        from .search import finalize
+
+        closed = finalize(closed, [c for c in final.contacts if c.type == "fixed"], mu=mu,
+                          threshold=threshold)
+        was_stable = final.stability is not None and final.stability.stable
+        if closed.stability is not None and (closed.stability.stable or not was_stable):
+            final = closed
+        else:
+            gap_closed = 0.0
+    timings["close"] = time.perf_counter() - t
+
     unstable = []
     if final.stability is not None and not final.stability.stable:
         from .stability import check_stability
@@ -932,6 +952,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "added_volume_m3": result.added_volume,
+        "gap_closed_m": gap_closed,
         "refine": None if refined is None else {
             "energy_before": refined.energy_before, "energy_after": refined.energy_after,
             "steps": refined.steps, "evaluations": refined.evaluations},
