@@ -240,6 +240,9 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
 #: this fraction of the box's extent there, whichever is larger.
 JOIN_TRIM_ABS = 0.02
 JOIN_TRIM_REL = 0.1
+#: ... and never more than this share of it (the absolute allowance is for a board's
+#: noisy edge, not for clearing a box thinner than it).
+JOIN_TRIM_MAX_SHARE = 0.5
 
 
 def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, list[str]]:
@@ -253,7 +256,8 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     the board.  Here a join whose extensions are short (:func:`pipeline.search.short_join`)
     is applied when every box it enters belongs to another object
     and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
-    (the face that reaches least far in).  Smallest added volume first; returns the
+    (the face that reaches least far in), and never by more than
+    :data:`JOIN_TRIM_MAX_SHARE` of it.  Smallest added volume first; returns the
     arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
@@ -297,8 +301,9 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
                 if face is None:
                     continue
                 depth, axis, side = face
-                if depth > max(JOIN_TRIM_ABS, JOIN_TRIM_REL * float(r.size[axis])):
-                    ok = False
+                if depth > min(max(JOIN_TRIM_ABS, JOIN_TRIM_REL * float(r.size[axis])),
+                               JOIN_TRIM_MAX_SHARE * float(r.size[axis])):
+                    ok = False  # (2 cm of a 12 mm book would leave a negative size)
                     break
                 u = r.rotation[:, axis] * (1.0 if side else -1.0)
                 size = r.size.copy()

@@ -251,6 +251,21 @@ def test_a_board_joins_its_panel_and_the_book_in_the_way_gives_way():
     assert joined == [] and out.cuboid("book") is deep and out.cuboid("board") is board
 
 
+def test_a_join_never_trims_a_box_thinner_than_the_allowance_to_a_negative_size():
+    # the board's 3.3 cm extension to its panel passes through a 12 mm book standing in
+    # its way: the 2 cm trim allowance (for a board's noisy edge) would have cut 19 mm
+    # off the book, leaving it -7 mm wide (written to arrangement.json, which then did
+    # not load: room-1001 of Table 1); a box gives way by at most half its extent
+    from pipeline.imagine import join_parts
+
+    panel = box("panel", (-0.493, 0, 0.6), (0.02, 0.3, 1.2), object="shelf")
+    board = box("board", (0.02, 0, 0.3), (0.94, 0.3, 0.02), object="shelf")
+    book = box("book", (-0.47, 0, 0.425), (0.012, 0.2, 0.35), object="book")
+    out, joined = join_parts(Arrangement((panel, board, book), (ground(),)))
+    assert joined == [] and out.cuboid("book") is book and out.cuboid("board") is board
+    assert np.all(out.sizes > 0)
+
+
 def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     # three books fitted to noisy points (from a shelf scan): two 9 mm deep, overlapping
     # a third in depth.  Clearing through the depth costs each thin one more than its
