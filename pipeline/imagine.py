@@ -127,7 +127,14 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     not the plank); when each would lose more than half through its least overlapping
     face (two books a centimetre deep, one in front of the other), the faces are chosen
     by the share they cost instead (the books give way sideways), and when still each
-    would lose more than half, both give way by half the overlap.  A box reaching below a support plane loses the part below it.
+    would lose more than half, both give way by half the overlap.  In that thin case a
+    box fitted to :data:`EVIDENCE_RATIO` times the other's points keeps the space and the
+    other gives way through its cheapest face: a book fitted askew from a few hundred
+    spine points that reaches into a shelf's side panel (tens of thousands of points) is
+    narrowed, where cutting the smallest share would have cut the panel's bottom off and
+    stood it on the book (the panel fused to the board under the book then clamps the
+    book, which only friction from that clamp holds: both engines drop it).  A box
+    reaching below a support plane loses the part below it.
     """
     repaired = 0
     for _ in range(max_rounds):
@@ -155,6 +162,12 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                 by_share = min(ri, rj) > 0.5
                 if by_share:  # thin boxes: clear through the face that costs least of them
                     ri, rj = _relative_overlap(ci, cj, True), _relative_overlap(cj, ci, True)
+                    # ... unless one was fitted to far more points: the other gives way
+                    pi, pj = _points(ci), _points(cj)
+                    if pj >= EVIDENCE_RATIO * pi:
+                        ri, rj = 0.0, 1.0
+                    elif pi >= EVIDENCE_RATIO * pj:
+                        ri, rj = 1.0, 0.0
                 if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
                     if ri <= rj:
                         cubs[i] = _shrink_against(ci, cj, by_share=by_share)
@@ -374,6 +387,17 @@ def _merge(a: Cuboid, b: Cuboid) -> Cuboid:
     extra["points"] = int(a.extra.get("points", 0)) + int(b.extra.get("points", 0))
     obs = ObservedBox(center, hi - lo)
     return Cuboid(a.id, center, a.rotation, hi - lo, a.density, a.object, obs, extra)
+
+
+#: When two overlapping boxes would each lose more than half through their least
+#: overlapping face, one fitted to at least this many times the other's points keeps the
+#: disputed space (:func:`repair_overlaps`).
+EVIDENCE_RATIO = 4.0
+
+
+def _points(c: Cuboid) -> float:
+    """The points a box was fitted to (1 when unknown: every box counts alike)."""
+    return max(float(c.extra.get("points", 1)), 1.0)
 
 
 def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False
