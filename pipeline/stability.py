@@ -63,7 +63,11 @@ contacts along a line steeper than 45 degrees (two upright boxes slightly yawed 
 each other touch along a vertical edge), whose normal is within 15 degrees of
 horizontal (``constants.SIDE_CONTACT_MAX_NZ``) and that are not fixed.  They still push
 (normal force), so lateral bracing works; corners and edges along flatter lines keep
-friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  Pass
+friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  That
+exception needs the body to stand on something: a body that no contact pushes upward
+(:func:`hanging_contacts`) gets no friction on its corner and edge side contacts either
+(a box held at 45 degrees by one edge on the wall and one on a desk's side, squeezed by
+the desk standing on the floor: statics accepted it, both engines drop it 0.5 m).  Pass
 ``side_friction=True`` to get plain statics.
 """
 
@@ -252,6 +256,30 @@ class EquilibriumSystem:
             - self.b
 
 
+def hanging_contacts(contacts: ContactSet, bodies: Bodies, active: np.ndarray) -> np.ndarray:
+    """(M,) bool: contacts of a free body that nothing pushes upward (no active contact
+    whose normal into it points up by more than ``SIDE_CONTACT_MAX_NZ``).
+
+    Such a body could hang only from friction at its side contacts, and friction there
+    needs a squeeze that nothing without preload provides (a box wedged by two edges
+    between a desk's side and the wall; see "The side-friction trap").  A body standing
+    on something (a plank on the floor leaning on a wall) keeps the friction of its
+    corner and edge contacts: its own weight presses them.
+    """
+    M = contacts.count
+    if not M:
+        return np.zeros(0, bool)
+    ga = bodies.of_node[contacts.a]
+    gb = bodies.of_node[contacts.b]
+    nz = contacts.normal[:, 2]  # into a
+    G = len(bodies.mass)
+    held = np.zeros(G, bool)
+    held[ga[active & (nz > SIDE_CONTACT_MAX_NZ)]] = True
+    held[gb[active & (-nz > SIDE_CONTACT_MAX_NZ)]] = True
+    hanging = ~held & ~bodies.anchored
+    return active & (hanging[ga] | hanging[gb])
+
+
 def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: float,
                  side_friction: bool = False, fixed_contacts: np.ndarray | None = None
                  ) -> EquilibriumSystem:
@@ -282,6 +310,8 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
         span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
         upright_edge = (nverts == 2) & (span[:, 2] > np.hypot(span[:, 0], span[:, 1]))
     no_friction = horizontal & ((nverts >= 3) | upright_edge)
+    # ... and so do the corner and edge side contacts of a body that nothing pushes up
+    no_friction |= horizontal & hanging_contacts(contacts, bodies, active)
     if side_friction:
         no_friction[:] = False
     if fixed_contacts is not None:
