@@ -214,6 +214,35 @@ def test_a_box_hanging_by_edge_contacts_is_dropped_by_both_engines(engine):
     assert not r.stable and cube.translation > 0.4  # falls to the floor (0.46-0.50 m)
 
 
+def _book_over_an_edge(overhang: float) -> Arrangement:
+    """A 32 x 12 x 3 cm book lying on a 20 cm block, ``overhang`` of its length past the
+    block's edge (Table 1's table-1100 had one balanced on another book's edge)."""
+    x = 0.1 + 0.32 * overhang - 0.16
+    return Arrangement((box("block", (0, 0, 0.1), (0.2, 0.3, 0.2)),
+                        box("book", (x, 0, 0.215), (0.32, 0.12, 0.03))), (ground(),))
+
+
+@pytest.mark.parametrize("overhang, robust", [(0.45, True), (0.49, True), (0.5, False)])
+def test_a_flat_book_on_a_knife_edge_is_not_robust_to_a_tilt(overhang, robust):
+    # at 50 % the centre of mass is on the edge: plain statics balances it exactly, and
+    # gravity tilted by 2 degrees leaves E = 5e-6 only (torque in weight x 17 cm over a
+    # lever of 1.5 cm), below the plain threshold; the tilt must balance to 1e-8
+    arr = _book_over_an_edge(overhang)
+    assert check_stability(arr).stable
+    res = check_stability(arr, tilt_deg=2.0)
+    assert res.stable == robust
+    if not robust:
+        assert res.status == "not robust" and res.unstable_ids == ["book"]
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_the_knife_edge_book_topples_in_both_engines_and_49_percent_stands(engine):
+    from simulate.engines import settle
+
+    assert not settle(_book_over_an_edge(0.5), engine).stable
+    assert settle(_book_over_an_edge(0.49), engine).stable
+
+
 def test_backends_agree_on_random_stacks():
     rng = np.random.default_rng(7)
     verdicts = []
