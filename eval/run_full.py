@@ -140,7 +140,8 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
               f"| overlaps repaired | {rep['repaired_overlaps']} |",
               f"| hallucinated parts | {', '.join(rep['hallucinated']) or 'none'} |",
               f"| fixed contacts chosen (beyond same-object fusions) | {rep['fixed_chosen']} |",
-              f"| added volume (m^3) | {rep['added_volume_m3']:.4g} |"]
+              f"| added volume (m^3) | {rep['added_volume_m3']:.4g} |",
+              f"| largest contact gap closed (mm) | {1000 * rep.get('gap_closed_m', 0.0):.3g} |"]
     if rep.get("refine"):
         r = rep["refine"]
         lines += [f"| refinement | E {r['energy_before']:.3g} -> {r['energy_after']:.3g} in "

@@ -28,6 +28,14 @@ FRICTION_PYRAMID_EDGES = 8
 #: support by 51 % (E ~ 4e-4); the paper's 1e-3 would accept that box.
 ENERGY_THRESHOLD = 1e-5
 
+#: Under gravity tilted for robustness (``check_stability(tilt_deg=...)``), E must stay
+#: below ENERGY_THRESHOLD times this: a tilted residual means the tilt cannot be balanced.
+#: The residual torque is in units of weight x body size, so for a flat body (a book,
+#: its centre of mass 1.5 cm above a knife edge, 17 cm to its far corner) a 2 degree
+#: tilt leaves E = 5e-6 only, under the plain threshold; 1e-8 rejects it, and solver
+#: round-off (< 1e-20) stays far below.
+ROBUST_THRESHOLD_REL = 1e-3
+
 #: Contact tolerance as a fraction of the smaller box's smallest edge: two boxes
 #: whose separation along the best separating axis is within +/- this gap touch.
 CONTACT_REL_TOL = 0.02

@@ -19,7 +19,10 @@
    between different objects are dropped where refining the boxes makes them stand
    without (:func:`relax_fixed`), and a box stretched to the floor far below what was
    seen of it rests on a hidden support instead (:func:`hidden_supports`: a sofa's seat);
-5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy.
+5. *refinement* (:mod:`pipeline.refine`) when the result still carries residual energy;
+6. *closing* (:func:`pipeline.snap.close_gaps`): contacts between different rigid bodies,
+   touching within the contact tolerance, are made exact (what the engines load is what
+   the statics judged).
 
 It returns the final arrangement (each cuboid keeps its ``observed`` box) and a report
 dict with counts, statistics and timings per step.  ``budget`` seconds bound the search,
@@ -42,6 +45,7 @@ from .extend import DepthView, candidate_edges, depth_noise, prune_by_visibility
 from .model import Arrangement, Contact, Cuboid, ObservedBox
 from .refine import refine
 from .search import search
+from .snap import close_gaps
 from .symmetry import hallucinate
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
@@ -123,7 +127,14 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     not the plank); when each would lose more than half through its least overlapping
     face (two books a centimetre deep, one in front of the other), the faces are chosen
     by the share they cost instead (the books give way sideways), and when still each
-    would lose more than half, both give way by half the overlap.  A box reaching below a support plane loses the part below it.
+    would lose more than half, both give way by half the overlap.  In that thin case a
+    box fitted to :data:`EVIDENCE_RATIO` times the other's points keeps the space and the
+    other gives way through its cheapest face: a book fitted askew from a few hundred
+    spine points that reaches into a shelf's side panel (tens of thousands of points) is
+    narrowed, where cutting the smallest share would have cut the panel's bottom off and
+    stood it on the book (the panel fused to the board under the book then clamps the
+    book, which only friction from that clamp holds: both engines drop it).  A box
+    reaching below a support plane loses the part below it.
     """
     repaired = 0
     for _ in range(max_rounds):
@@ -155,6 +166,12 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                 by_share = min(ri, rj) > 0.5
                 if by_share:  # thin boxes: clear through the face that costs least of them
                     ri, rj = _relative_overlap(ci, cj, True), _relative_overlap(cj, ci, True)
+                    # ... unless one was fitted to far more points: the other gives way
+                    pi, pj = _points(ci), _points(cj)
+                    if pj >= EVIDENCE_RATIO * pi:
+                        ri, rj = 0.0, 1.0
+                    elif pi >= EVIDENCE_RATIO * pj:
+                        ri, rj = 1.0, 0.0
                 if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
                     if ri <= rj:
                         cubs[i] = _shrink_against(ci, cj, by_share=by_share)
@@ -268,6 +285,9 @@ def _settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
 #: this fraction of the box's extent there, whichever is larger.
 JOIN_TRIM_ABS = 0.02
 JOIN_TRIM_REL = 0.1
+#: ... and never more than this share of it (the absolute allowance is for a board's
+#: noisy edge, not for clearing a box thinner than it).
+JOIN_TRIM_MAX_SHARE = 0.5
 
 
 def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, list[str]]:
@@ -281,7 +301,8 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     the board.  Here a join whose extensions are short (:func:`pipeline.search.short_join`)
     is applied when every box it enters belongs to another object
     and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
-    (the face that reaches least far in).  Smallest added volume first; returns the
+    (the face that reaches least far in), and never by more than
+    :data:`JOIN_TRIM_MAX_SHARE` of it.  Smallest added volume first; returns the
     arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
@@ -325,8 +346,9 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
                 if face is None:
                     continue
                 depth, axis, side = face
-                if depth > max(JOIN_TRIM_ABS, JOIN_TRIM_REL * float(r.size[axis])):
-                    ok = False
+                if depth > min(max(JOIN_TRIM_ABS, JOIN_TRIM_REL * float(r.size[axis])),
+                               JOIN_TRIM_MAX_SHARE * float(r.size[axis])):
+                    ok = False  # (2 cm of a 12 mm book would leave a negative size)
                     break
                 u = r.rotation[:, axis] * (1.0 if side else -1.0)
                 size = r.size.copy()
@@ -451,6 +473,17 @@ def _merge(a: Cuboid, b: Cuboid) -> Cuboid:
     extra["points"] = int(a.extra.get("points", 0)) + int(b.extra.get("points", 0))
     obs = ObservedBox(center, hi - lo)
     return Cuboid(a.id, center, a.rotation, hi - lo, a.density, a.object, obs, extra)
+
+
+#: When two overlapping boxes would each lose more than half through their least
+#: overlapping face, one fitted to at least this many times the other's points keeps the
+#: disputed space (:func:`repair_overlaps`).
+EVIDENCE_RATIO = 4.0
+
+
+def _points(c: Cuboid) -> float:
+    """The points a box was fitted to (1 when unknown: every box counts alike)."""
+    return max(float(c.extra.get("points", 1)), 1.0)
 
 
 def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False
@@ -1171,6 +1204,22 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         final = finalize(refined.arrangement, fixed, mu=mu, threshold=threshold)
     timings["refine"] = time.perf_counter() - t
 
+    # the faces the statics counted as touching are made to touch (the engines see the
+    # file's geometry: a gap within the contact tolerance is a drop, an overlap a push)
+    t = time.perf_counter()
+    closed, gap_closed = close_gaps(final)
+    if closed is not final:
+        from .search import finalize
+
+        closed = finalize(closed, [c for c in final.contacts if c.type == "fixed"], mu=mu,
+                          threshold=threshold)
+        was_stable = final.stability is not None and final.stability.stable
+        if closed.stability is not None and (closed.stability.stable or not was_stable):
+            final = closed
+        else:
+            gap_closed = 0.0
+    timings["close"] = time.perf_counter() - t
+
     unstable = []
     if final.stability is not None and not final.stability.stable:
         from .stability import check_stability
@@ -1199,6 +1248,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "anchored_parts": anchored,
         "closed_gaps": gaps,
         "added_volume_m3": result.added_volume,
+        "gap_closed_m": gap_closed,
         "refine": None if refined is None else {
             "energy_before": refined.energy_before, "energy_after": refined.energy_after,
             "steps": refined.steps, "evaluations": refined.evaluations},

@@ -4,7 +4,9 @@ The lowest large plane whose normal is close to the expected up direction is the
 ground (or the table top when the scan is of a table); large planes orthogonal to it
 are walls.  When the input has no camera pose, the world frame is chosen here: z is the
 ground normal, the origin is the foot of the camera centre on the ground, and x is the
-camera's x axis projected on the ground, so the picture keeps its left and right.
+camera's x axis projected on the ground, so the picture keeps its left and right.  With
+a known pose the frame is kept and a ground fitted within a few degrees of its z is made
+level (z is up for gravity, the statics and the engines; the fitted tilt is noise).
 """
 
 from __future__ import annotations
@@ -22,6 +24,10 @@ MIN_PLANE_FRACTION = 0.04
 #: Normal within this angle of up: candidate ground.  Within 90 deg +/- this: wall.
 GROUND_MAX_ANGLE_DEG = 25.0
 WALL_MAX_TILT_DEG = 12.0
+#: With a known camera pose (its z up), a ground whose fitted normal is within this
+#: many degrees of z is taken as level (the tilt :func:`pipeline.imagine.align_boxes`
+#: takes off a box that stands on it).
+GROUND_LEVEL_MAX_DEG = 15.0
 #: The ground is the lowest upward plane holding at least this share of the largest
 #: upward plane's points (so a sofa seat below a table top does not win).
 GROUND_MIN_SHARE = 0.8
@@ -214,6 +220,14 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         p0 = -g.offset * n_up
         z0 = float(transform(T, p0[None])[0] @ n_w)
         ground = Support("ground", np.array([0.0, 0.0, z0 / max(n_w[2], 1e-9)]), n_w)
+        if n_w[2] >= np.cos(np.radians(GROUND_LEVEL_MAX_DEG)):
+            # the frame's z is up (gravity is -z): the floor is level, at the median height
+            # of its points; the fitted tilt is depth noise (0.2-0.3 deg at 3-4 m), and
+            # upright boxes on a tilted floor stand on one edge and rock onto the slope
+            on = np.abs(ground.signed_distance(transform(T, points))) < 1.5 * thr
+            if np.any(on):
+                h = float(np.median(transform(T, points[on])[:, 2]))
+                ground = Support("ground", np.array([0.0, 0.0, h]), np.array([0.0, 0.0, 1.0]))
     else:
         ex = np.array([1.0, 0.0, 0.0]) if camera_frame else _any_perp(n_up)
         ex = ex - (ex @ n_up) * n_up

@@ -63,7 +63,11 @@ contacts along a line steeper than 45 degrees (two upright boxes slightly yawed 
 each other touch along a vertical edge), whose normal is within 15 degrees of
 horizontal (``constants.SIDE_CONTACT_MAX_NZ``) and that are not fixed.  They still push
 (normal force), so lateral bracing works; corners and edges along flatter lines keep
-friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  Pass
+friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  That
+exception needs the body to stand on something: a body that no contact pushes upward
+(:func:`hanging_contacts`) gets no friction on its corner and edge side contacts either
+(a box held at 45 degrees by one edge on the wall and one on a desk's side, squeezed by
+the desk standing on the floor: statics accepted it, both engines drop it 0.5 m).  Pass
 ``side_friction=True`` to get plain statics.
 """
 
@@ -80,6 +84,7 @@ from .constants import (
     ENERGY_THRESHOLD,
     FRICTION_PYRAMID_EDGES,
     GRAVITY,
+    ROBUST_THRESHOLD_REL,
     SIDE_CONTACT_MAX_NZ,
 )
 from .contacts import ContactSet, cross, find_contacts
@@ -252,6 +257,30 @@ class EquilibriumSystem:
             - self.b
 
 
+def hanging_contacts(contacts: ContactSet, bodies: Bodies, active: np.ndarray) -> np.ndarray:
+    """(M,) bool: contacts of a free body that nothing pushes upward (no active contact
+    whose normal into it points up by more than ``SIDE_CONTACT_MAX_NZ``).
+
+    Such a body could hang only from friction at its side contacts, and friction there
+    needs a squeeze that nothing without preload provides (a box wedged by two edges
+    between a desk's side and the wall; see "The side-friction trap").  A body standing
+    on something (a plank on the floor leaning on a wall) keeps the friction of its
+    corner and edge contacts: its own weight presses them.
+    """
+    M = contacts.count
+    if not M:
+        return np.zeros(0, bool)
+    ga = bodies.of_node[contacts.a]
+    gb = bodies.of_node[contacts.b]
+    nz = contacts.normal[:, 2]  # into a
+    G = len(bodies.mass)
+    held = np.zeros(G, bool)
+    held[ga[active & (nz > SIDE_CONTACT_MAX_NZ)]] = True
+    held[gb[active & (-nz > SIDE_CONTACT_MAX_NZ)]] = True
+    hanging = ~held & ~bodies.anchored
+    return active & (hanging[ga] | hanging[gb])
+
+
 def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: float,
                  side_friction: bool = False, fixed_contacts: np.ndarray | None = None
                  ) -> EquilibriumSystem:
@@ -282,6 +311,8 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
         span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
         upright_edge = (nverts == 2) & (span[:, 2] > np.hypot(span[:, 0], span[:, 1]))
     no_friction = horizontal & ((nverts >= 3) | upright_edge)
+    # ... and so do the corner and edge side contacts of a body that nothing pushes up
+    no_friction |= horizontal & hanging_contacts(contacts, bodies, active)
     if side_friction:
         no_friction[:] = False
     if fixed_contacts is not None:
@@ -843,7 +874,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         Precomputed contacts of ``arr``.
     tilt_deg : float
         When > 0, also require equilibrium with gravity tilted by this angle towards
-        +-x and +-y (a robustness margin used by the search).
+        +-x and +-y (a robustness margin used by the search), to within
+        ``threshold * ROBUST_THRESHOLD_REL``: the plain threshold lets a flat body balance
+        on a knife edge pass a 2 degree tilt (a 32 cm book half over its support: E = 5e-6
+        under the tilt; both engines topple it).
     solve_cache : dict, optional
         Solutions of independent components by digest of their sub-problem, kept by the
         caller across calls (see :func:`solve_energy`); results are identical with or
@@ -891,11 +925,13 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             b[6 * np.arange(F) + 1] = -np.sin(t) * hy
             b[6 * np.arange(F) + 2] = np.cos(t)
             tilted = replace(system, b=b)
+            tthr = threshold * ROBUST_THRESHOLD_REL
             lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
-                                         digests=digests, unstable_bound=bound)
-            if _energy(bodies, tilted, lam_t) < threshold:
+                                         digests=digests,
+                                         unstable_bound=None if bound is None else tthr)
+            if _energy(bodies, tilted, lam_t) < tthr:
                 continue  # (the full result is only built when it is the answer)
-            res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
+            res_t = _result(arr, contacts, bodies, tilted, lam_t, tthr, used_t, mu)
             if not res_t.stable:
                 return replace(res_t, status="not robust")
     return result

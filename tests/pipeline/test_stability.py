@@ -172,6 +172,77 @@ def test_side_friction_trap_along_vertical_edges():
     assert not res.stable and res.unstable_ids == ["w"]
 
 
+def _hanging_by_two_edges():
+    """A 20 cm cube turned 45 deg about y, one edge on the wall x = 0 and the opposite
+    edge on the side of a free-standing desk, 0.5 m above the floor (Table 1's room-1000
+    had such a box, fitted askew, between a desk and the wall)."""
+    from pipeline.model import Cuboid, Support, rotation_about_axis
+
+    h = 0.1 * np.sqrt(2)
+    cube = Cuboid("cube", np.array([h, 0.0, 0.6]),
+                  rotation_about_axis(np.array([0.0, 1.0, 0.0]), np.radians(45)),
+                  np.array([0.2, 0.2, 0.2]))
+    desk = box("desk", (2 * h + 0.25, 0, 0.4), (0.5, 0.6, 0.8))
+    wall = Support("wall:0", np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    return Arrangement((cube, desk), (ground(), wall))
+
+
+def test_a_box_hanging_by_edge_contacts_from_friction_alone_falls():
+    # its two contacts are edges along a horizontal line (a leaning plank's kind, which
+    # keeps friction), but nothing pushes it up: only a squeeze between the desk and the
+    # wall could hold it, and nothing provides one
+    from pipeline.contacts import find_contacts
+
+    arr = _hanging_by_two_edges()
+    cs = find_contacts(arr)
+    assert sorted(cs.pairs) == [("cube", "desk"), ("cube", "wall:0"), ("desk", "ground")]
+    assert check_stability(arr, side_friction=True).stable  # plain statics: E ~ 1e-31
+    res = check_stability(arr)
+    assert not res.stable and res.unstable_ids == ["cube"]
+    # standing on the floor instead, it leans on the wall by its own weight: stands
+    low = arr.with_(cuboids=(arr.cuboids[0].with_(center=np.array([0.1 * np.sqrt(2), 0.0,
+                                                                   0.1 * np.sqrt(2)])),))
+    assert check_stability(low).stable
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_a_box_hanging_by_edge_contacts_is_dropped_by_both_engines(engine):
+    from simulate.engines import settle
+
+    r = settle(_hanging_by_two_edges(), engine)
+    cube = next(b for b in r.bodies if b.id == "cube")
+    assert not r.stable and cube.translation > 0.4  # falls to the floor (0.46-0.50 m)
+
+
+def _book_over_an_edge(overhang: float) -> Arrangement:
+    """A 32 x 12 x 3 cm book lying on a 20 cm block, ``overhang`` of its length past the
+    block's edge (Table 1's table-1100 had one balanced on another book's edge)."""
+    x = 0.1 + 0.32 * overhang - 0.16
+    return Arrangement((box("block", (0, 0, 0.1), (0.2, 0.3, 0.2)),
+                        box("book", (x, 0, 0.215), (0.32, 0.12, 0.03))), (ground(),))
+
+
+@pytest.mark.parametrize("overhang, robust", [(0.45, True), (0.49, True), (0.5, False)])
+def test_a_flat_book_on_a_knife_edge_is_not_robust_to_a_tilt(overhang, robust):
+    # at 50 % the centre of mass is on the edge: plain statics balances it exactly, and
+    # gravity tilted by 2 degrees leaves E = 5e-6 only (torque in weight x 17 cm over a
+    # lever of 1.5 cm), below the plain threshold; the tilt must balance to 1e-8
+    arr = _book_over_an_edge(overhang)
+    assert check_stability(arr).stable
+    res = check_stability(arr, tilt_deg=2.0)
+    assert res.stable == robust
+    if not robust:
+        assert res.status == "not robust" and res.unstable_ids == ["book"]
+
+
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_the_knife_edge_book_topples_in_both_engines_and_49_percent_stands(engine):
+    from simulate.engines import settle
+
+    assert not settle(_book_over_an_edge(0.5), engine).stable
+    assert settle(_book_over_an_edge(0.49), engine).stable
+
+
 def test_backends_agree_on_random_stacks():
     rng = np.random.default_rng(7)
     verdicts = []
