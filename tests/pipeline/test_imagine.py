@@ -485,3 +485,27 @@ def test_a_gap_the_camera_saw_the_floor_through_stays_open():
     final, views = _two_books(0.015, 0.015, eye=(0.0, -0.4, 1.6))
     out, closed = close_hidden_gaps(final, views)
     assert closed == [] and out is final
+
+
+def test_a_point_beside_a_part_thinner_than_a_pixel_is_not_seen_empty():
+    # a shelf panel 4.5 m away covers one pixel column; its neighbours read the wall
+    # 0.5 m behind.  A point at the panel's depth one pixel off the column (where the
+    # panel's true, unseen bottom is) is not seen empty; three pixels off, it is.
+    from pipeline.camera import Intrinsics, invert, transform
+    from pipeline.extend import DepthView, visible_free_fraction
+
+    intr = Intrinsics.kinect_v1()
+    T = np.eye(4)
+    depth = np.full((intr.height, intr.width), 5.0)
+    u0 = 320
+    depth[:, u0] = 4.5
+    view = DepthView(depth, intr, T)
+
+    def point(du):  # camera frame = world frame here; pixel (u0 + du, 240) at 4.5 m
+        return np.array([[(u0 + du - intr.cx) * 4.5 / intr.fx, (240 - intr.cy) * 4.5 / intr.fy,
+                          4.5]])
+
+    assert visible_free_fraction(point(0), [view]) == 0.0
+    assert visible_free_fraction(point(1), [view]) == 0.0
+    assert visible_free_fraction(point(3), [view]) == 1.0
+    assert np.allclose(transform(invert(T), point(3)), point(3))
