@@ -502,7 +502,7 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
                                starts, tol, nnls, memo)
         else:
             ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
-                                  starts, tol, nnls)
+                                  starts, tol, nnls, memo)
         if ok:
             done[unit] = True
             i += 1
@@ -609,8 +609,11 @@ def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | 
 
 
 def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side_all, starts,
-                     tol, nnls) -> bool:
-    """Balance the bodies of ``unit`` jointly (forces between them are unknowns too)."""
+                     tol, nnls, memo: dict | None = None) -> bool:
+    """Balance the bodies of ``unit`` jointly (forces between them are unknowns too).
+
+    ``memo`` as for :func:`_balance_body`: the cluster's matrix, vertex grouping and
+    right-hand side determine its answer."""
     local = {r: k for k, r in enumerate(unit)}
     c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
     sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
@@ -633,18 +636,37 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
     np.add.at(A, ((6 * blk[un])[:, None] + np.arange(6), col_idx[:, None]), coef[un])
     # 1) normal forces only, 2) with friction (as for one body)
     vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    key = None
+    if memo is not None:
+        import hashlib
+
+        h = hashlib.blake2b(b"cluster", digest_size=20)
+        for part in (A, inv, rhs, np.float64(tol)):
+            h.update(np.ascontiguousarray(part).tobytes())
+        key = h.digest()
+        hit = memo.get(key, memo)
+        if hit is not memo:
+            if hit is None:
+                return False
+            lam[cu] = hit
+            owner[cu] = pos
+            return True
     per_vert = np.bincount(inv, minlength=len(vert))
     An = np.zeros((n_rows, len(vert)))
     np.add.at(An, (slice(None), inv), A)
     An /= per_vert
     x = _exact_nnls(An, rhs, tol, nnls)
     if x is not None:
-        lam[cu] = (x / per_vert)[inv]
+        x = (x / per_vert)[inv]
     else:
         x = _exact_nnls(A, rhs, tol, nnls)
-        if x is None:
-            return False
-        lam[cu] = x
+    if key is not None:
+        if len(memo) >= LOAD_PATH_MEMO_MAX:
+            memo.clear()
+        memo[key] = x
+    if x is None:
+        return False
+    lam[cu] = x
     owner[cu] = pos
     return True
 
