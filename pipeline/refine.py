@@ -62,10 +62,11 @@ class _Evaluator:
     (``check_stability(solve_cache=...)``).
     """
 
-    def __init__(self, arr: Arrangement, mu: float, tilt_deg: float) -> None:
+    def __init__(self, arr: Arrangement, mu: float, tilt_deg: float,
+                 contacts: ContactSet | None = None, cache: dict | None = None) -> None:
         self.mu, self.tilt_deg = mu, tilt_deg
-        self.cache: dict[bytes, tuple] = {}
-        self.rebase(arr, find_contacts(arr))
+        self.cache: dict[bytes, tuple] = {} if cache is None else cache
+        self.rebase(arr, find_contacts(arr) if contacts is None else contacts)
 
     def rebase(self, arr: Arrangement, contacts: ContactSet) -> None:
         self.base, self.base_contacts = arr, contacts
@@ -152,17 +153,20 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
 
 
 def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float = 1e-5,
-           tilt_deg: float = 0.0, deadline: float | None = None) -> RefineResult:
+           tilt_deg: float = 0.0, deadline: float | None = None,
+           contacts: ContactSet | None = None, solve_cache: dict | None = None) -> RefineResult:
     """Lower the stability energy of ``arr`` keeping its contacts (see module docstring).
 
     With ``tilt_deg`` > 0 the energy is that of the first tilt of gravity by that angle
     under which the arrangement fails (``check_stability(tilt_deg=...)``): the result then
     stands with a margin.  ``deadline`` (a ``time.perf_counter()`` value) stops the steps
-    early; the best arrangement so far is returned.
+    early; the best arrangement so far is returned.  ``contacts`` (those of ``arr``) and
+    ``solve_cache`` (component solutions kept by the caller, see ``check_stability``)
+    only save work.
     """
     import time
 
-    energy = _Evaluator(arr, mu, tilt_deg)
+    energy = _Evaluator(arr, mu, tilt_deg, contacts, solve_cache)
     E0, res, _ = energy(arr)
     evals = 1
     E = E0
