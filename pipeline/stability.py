@@ -448,7 +448,8 @@ def _body_columns(system: EquilibriumSystem) -> tuple[np.ndarray, np.ndarray, np
 def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
               grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-              max_cluster: int | None = None, memo: dict | None = None) -> np.ndarray | None:
+              max_cluster: int | None = None, memo: dict | None = None,
+              proof: list | None = None) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -480,6 +481,12 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     columns' coefficients, their grouping into vertices and its right-hand side) to the
     NNLS answer, so the bodies that a change elsewhere leaves alone are not solved again
     (exact: equal problems have equal answers).
+
+    A body that fails on its own and misses by more than :data:`LOAD_PATH_FLOOR`
+    (squared) even with every one of its contacts free (:func:`_body_floor`) ends the
+    pass at once: every cluster it would join must balance its rows too, to ``tol``, so
+    none can, and the answer is None as after the merges.  Its floor is appended to
+    ``proof`` (a list kept by the caller): the component's E is at least that much.
     """
     from scipy.optimize import nnls
 
@@ -507,6 +514,12 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
             done[unit] = True
             i += 1
             continue
+        if len(unit) == 1 and max(tol * tol, LOAD_PATH_FLOOR) < (
+                floor := _body_floor(system, unit[0], column_mask,
+                                     (cols_all, side_all, starts))):
+            if proof is not None:
+                proof.append(floor)
+            return None  # no cluster with this body can balance it
         # merge the unit with the units of the bodies that loaded it, and resume there
         c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
         sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
@@ -545,6 +558,9 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
 LOAD_PATH_MAX_CLUSTER = 12
 #: and the most merges it tries
 LOAD_PATH_MAX_MERGES = 2
+#: a body missing equilibrium by more than this (squared, scaled) with all its contacts
+#: free ends :func:`load_path` (far above the certificate's tolerance squared, 1e-20)
+LOAD_PATH_FLOOR = 1e-8
 #: body problems remembered by :func:`load_path` (the memo is cleared beyond this)
 LOAD_PATH_MEMO_MAX = 20000
 
@@ -748,17 +764,20 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 lam[cols] = hit[0]
                 used.add(hit[1])
                 continue
-        how = None
+        how, floor = None, 0.0
         if backend == "auto" and system.blocks is not None:
             if grouping is None:
                 grouping = _body_columns(system)
             memo = None if cache is None else cache.setdefault("load_path_memo", {})
+            proof: list[float] = []
             x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping,
-                          memo=memo)
+                          memo=memo, proof=proof)
+            floor = max(proof, default=0.0)  # E of this component is at least this
             if x is not None:
                 x, how = x[cols], "load-path"
-            elif unstable_bound is not None and _body_cannot_balance(
-                    system, rows[::6] // 6, column_mask, grouping, unstable_bound):
+            elif unstable_bound is not None and (
+                    floor >= 10 * unstable_bound or _body_cannot_balance(
+                        system, rows[::6] // 6, column_mask, grouping, unstable_bound)):
                 x, how = np.zeros(len(cols)), "bound"
                 if key is not None:
                     cache[key + b"|bound"] = (x, how)
@@ -772,7 +791,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                     dense = D.toarray()
                 else:
                     Dr = D.tocsr()
-            x, how = _solve_component(system.D, dense, Dr, system, rows, cols, backend)
+            x, how = _solve_component(system.D, dense, Dr, system, rows, cols, backend,
+                                      exact_possible=floor <= LOAD_PATH_FLOOR)
         if key is not None:
             cache[key] = (x, how)
         used.add(how)
@@ -788,37 +808,43 @@ def _body_cannot_balance(system: EquilibriumSystem, bodies: np.ndarray,
     even with every one of its contacts free: a proof that E >= ``bound``.
 
     Body ``g``'s rows involve only its own columns, so for any ``lambda >= 0`` its share
-    of E is at least ``min_{x >= 0} ||D_g x - b_g||^2`` (a 6-row NNLS).  The NNLS answer
-    is only trusted when it satisfies the optimality conditions (gradient >= 0, zero
-    where ``x`` > 0, up to round-off) and beats the bound ten times over.
+    of E is at least ``min_{x >= 0} ||D_g x - b_g||^2`` (a 6-row NNLS, :func:`_body_floor`),
+    trusted when it beats the bound ten times over.
     """
+    return any(_body_floor(system, r, column_mask, grouping) >= 10 * bound for r in bodies)
+
+
+def _body_floor(system: EquilibriumSystem, r: int, column_mask: np.ndarray | None,
+                grouping) -> float:
+    """``min_{x >= 0} ||D_r x - b_r||^2`` of free body ``r`` with every one of its contacts
+    free (a lower bound on its share of E under any forces), or 0 when the NNLS answer
+    fails the optimality conditions (gradient >= 0, zero where ``x`` > 0, up to
+    round-off) and so proves nothing."""
     from scipy.optimize import nnls
 
     cols_all, side_all, starts = grouping
-    for r in bodies:
-        c = cols_all[starts[r]:starts[r + 1]]
-        sd = side_all[starts[r]:starts[r + 1]]
-        if column_mask is not None:
-            keep = column_mask[c]
-            c, sd = c[keep], sd[keep]
-        b = system.b[6 * r:6 * r + 6]
-        if len(c) == 0:
-            if b @ b >= 10 * bound:
-                return True
-            continue
-        A = system.blocks[c, sd].T  # (6, k)
-        x, _ = nnls(A, b, maxiter=200 * max(len(c), 10))
-        res = A @ x - b
-        g = A.T @ res
-        slack = 1e-9 * (1.0 + np.abs(A).max() * (np.linalg.norm(b) + 1.0))
-        optimal = g.min() >= -slack and np.all(np.abs(g[x > 0]) <= slack)
-        if optimal and res @ res >= 10 * bound:
-            return True
-    return False
+    c = cols_all[starts[r]:starts[r + 1]]
+    sd = side_all[starts[r]:starts[r + 1]]
+    if column_mask is not None:
+        keep = column_mask[c]
+        c, sd = c[keep], sd[keep]
+    b = system.b[6 * r:6 * r + 6]
+    if len(c) == 0:
+        return float(b @ b)
+    A = system.blocks[c, sd].T  # (6, k)
+    x, _ = nnls(A, b, maxiter=200 * max(len(c), 10))
+    res = A @ x - b
+    g = A.T @ res
+    slack = 1e-9 * (1.0 + np.abs(A).max() * (np.linalg.norm(b) + 1.0))
+    optimal = g.min() >= -slack and np.all(np.abs(g[x > 0]) <= slack)
+    return float(res @ res) if optimal else 0.0
 
 
-def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndarray, str]:
-    """Solve one component by the frictionless certificate, dense NNLS or the QP."""
+def _solve_component(D, dense, Dr, system, rows, cols, backend, exact_possible: bool = True
+                     ) -> tuple[np.ndarray, str]:
+    """Solve one component by the frictionless certificate, dense NNLS or the QP
+    (``exact_possible`` False: a body is known to miss equilibrium, so the certificate,
+    which needs a zero residual, is skipped)."""
     if dense is not None:
         sub_dense = dense[np.ix_(rows, cols)]
         sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
@@ -828,7 +854,7 @@ def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndar
     rhs = system.b[rows]
     choice = backend
     if choice == "auto" and sub_dense is not None:
-        x = _normal_only(sub_dense, rhs, system.col_vertex[cols])
+        x = _normal_only(sub_dense, rhs, system.col_vertex[cols]) if exact_possible else None
         if x is not None:
             return x, "normal"
         choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"

@@ -10,6 +10,7 @@ import pipeline.refine as refine_mod
 import pipeline.stability as stability
 from pipeline.imagine import relax_fixed
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
+from pipeline.stability import check_stability
 
 
 def _observed(c):
@@ -98,3 +99,39 @@ def test_cluster_load_path_from_the_memo_equals_a_fresh_pass(monkeypatch):
                 assert (lam is None) == (fresh is None)
                 if fresh is not None:
                     np.testing.assert_array_equal(lam, fresh)
+
+
+def test_load_path_floor_gives_the_answers_of_the_full_pass(monkeypatch):
+    """A body that cannot balance with all its contacts free ends the load path early
+    and skips the frictionless certificate: the same solutions as without."""
+    from tests.conftest import overhang_scene
+    from tests.pipeline.test_search_speed_equivalence import _random_scene, _systems
+
+    rng = np.random.default_rng(21)
+    scenes = [_random_scene(rng) for _ in range(20)]
+    scenes += [overhang_scene(0.3), overhang_scene(0.7), _board(), _decks(), _overhang()]
+    scenes += [_decks().with_(contacts=tuple(c for c in _decks().contacts if c.type != "fixed"))]
+    out, on = {}, stability.LOAD_PATH_FLOOR
+    for floor in (on, np.inf):
+        monkeypatch.setattr(stability, "LOAD_PATH_FLOOR", floor)
+        proofs, res = [], []
+        for arr in scenes:
+            for system in _systems(arr):
+                for rows, _cols in stability._components(system):
+                    proof: list = []
+                    lam = stability.load_path(system, bodies=rows[::6] // 6, proof=proof)
+                    res.append(None if lam is None else lam.copy())
+                    proofs += proof
+                lam, used = stability.solve_energy(system)
+                res += [lam.copy(), used]
+            full = check_stability(arr, tilt_deg=2.0)
+            res.append((full.stable, full.energy, full.backend))
+        out[floor] = (res, proofs)
+    (fast, proofs), (slow, none) = out[on], out[np.inf]
+    assert proofs and not none  # the floor ended some passes
+    assert len(fast) == len(slow)
+    for a, b in zip(fast, slow, strict=True):
+        if isinstance(a, np.ndarray):
+            np.testing.assert_array_equal(a, b)
+        else:
+            assert a == b
