@@ -42,7 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .constants import CONTACT_ABS_TOL, CONTACT_REL_TOL
-from .model import CORNER_SIGNS, Arrangement, box_corners
+from .model import CORNER_SIGNS, Arrangement
 
 
 @dataclass(frozen=True)
@@ -163,6 +163,25 @@ def candidate_pairs(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarra
         out_i.append(rows[r][keep])
         out_j.append(c[keep])
     return np.concatenate(out_i), np.concatenate(out_j)
+
+
+def changed_pairs(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarray,
+                  margin: np.ndarray, changed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of :func:`candidate_pairs` that have a ``changed (K,)`` box, in the same
+    order (by ``i``, then ``j``), testing only the changed boxes against all."""
+    K = len(centers)
+    ch = np.nonzero(changed)[0]
+    if K < 2 or not len(ch):
+        return np.zeros(0, int), np.zeros(0, int)
+    ext = np.einsum("kij,kj->ki", np.abs(rotations), sizes / 2.0)
+    ext = ext + np.broadcast_to(np.asarray(margin, float), (K,))[:, None]
+    lo, hi = centers - ext, centers + ext
+    a, b = np.nonzero(np.all((lo[ch, None] <= hi[None]) & (lo[None] <= hi[ch, None]), axis=2))
+    a = ch[a]
+    keep = a != b
+    a, b = a[keep], b[keep]
+    codes = np.unique(np.minimum(a, b) * K + np.maximum(a, b))
+    return codes // K, codes % K
 
 
 def sat_separation(ca: np.ndarray, Ra: np.ndarray, ha: np.ndarray, cb: np.ndarray,
@@ -323,17 +342,17 @@ def _contact_parts(arr: Arrangement, rel_tol: float, changed: np.ndarray | None)
     names = arr.ids + arr.support_ids
     C, R, S = arr.centers, arr.rotations, arr.sizes
     H = S / 2.0
-    corners = box_corners(C, R, S) if K else np.zeros((0, 8, 3))
+    corners = arr.corners
     box_tol = np.maximum(rel_tol * (S.min(axis=1) if K else np.zeros(0)), CONTACT_ABS_TOL)
 
     parts = []  # (a, b, normal, verts, vidx, u, v, gap, ok)
     penetrations: list[tuple[str, str, float]] = []
 
     # ---- cuboid / cuboid
-    i, j = candidate_pairs(C, R, S, box_tol)
-    if changed is not None and len(i):
-        sel = changed[i] | changed[j]
-        i, j = i[sel], j[sel]
+    if changed is None:
+        i, j = candidate_pairs(C, R, S, box_tol)
+    else:
+        i, j = changed_pairs(C, R, S, box_tol, changed)
     if len(i):
         tol = np.minimum(box_tol[i], box_tol[j])
         sep, axis, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)

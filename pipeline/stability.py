@@ -70,7 +70,7 @@ friction, so a plank leaning with its edge on a wall keeps the ladder limit :mat
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -84,7 +84,7 @@ from .constants import (
 )
 from .contacts import ContactSet, cross, find_contacts
 from .errors import InputError
-from .model import Arrangement, box_corners, is_support_id
+from .model import Arrangement, is_support_id
 
 log = logging.getLogger(__name__)
 
@@ -188,7 +188,10 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     roots = np.array([find(k) for k in range(K + S)])
     # all supports form one anchored body
     sup_roots = set(roots[K:].tolist())
-    roots = np.where(np.isin(roots, list(sup_roots)), K + S, roots) if S else roots
+    if S:
+        is_sup = np.zeros(K + S, bool)
+        is_sup[list(sup_roots)] = True
+        roots = np.where(is_sup[roots], K + S, roots)
     uniq, of_node = np.unique(roots, return_inverse=True)
     G = len(uniq)
     anchored = np.zeros(G, bool)
@@ -198,7 +201,7 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     mass = np.bincount(of_node[:K], weights=masses, minlength=G)
     com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
                     for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
-    corners = box_corners(arr.centers, arr.rotations, arr.sizes) if K else np.zeros((0, 8, 3))
+    corners = arr.corners
     dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
     size = np.zeros(G)
     np.maximum.at(size, of_node[:K], dist)
@@ -227,16 +230,25 @@ class EquilibriumSystem:
     blocks: np.ndarray  # (ncol, 2, 6) scaled coefficients of each column on its two bodies
     col_row: np.ndarray  # (ncol, 2) free-body row block of each side, -1 when anchored
     free_height: np.ndarray  # (F,) COM height of each free body
+    #: (rows, columns, coefficients) of the entries of ``D``, gathered on first use and
+    #: shared with the copies that differ in ``b`` (tilted gravity)
+    _entries: list = field(default_factory=list, repr=False, compare=False)
+
+    def entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Flat row indices, column indices and values of the entries of ``D``."""
+        if not self._entries:
+            c_idx, s_idx = np.nonzero(self.col_row >= 0)
+            rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
+            self._entries.append((rows.ravel(), c_idx, self.blocks[c_idx, s_idx]))
+        return self._entries[0]
 
     @property
     def D(self) -> sp.csc_matrix:
         """(6F, ncol) the scaled equilibrium matrix (assembled lazily: certificates that
         work body by body never need it)."""
         if self._D is None:
-            c_idx, s_idx = np.nonzero(self.col_row >= 0)
-            rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
-            D = sp.csc_matrix((self.blocks[c_idx, s_idx].ravel(),
-                               (rows.ravel(), np.repeat(c_idx, 6))),
+            rows, c_idx, coef = self.entries()
+            D = sp.csc_matrix((coef.ravel(), (rows, np.repeat(c_idx, 6))),
                               shape=(6 * len(self.free), len(self.col_vertex)))
             object.__setattr__(self, "_D", D)
         return self._D
@@ -245,11 +257,9 @@ class EquilibriumSystem:
         """(6F,) ``D lambda - b``."""
         if self._D is not None or self.blocks is None:
             return self.D @ lam - self.b
-        c_idx, s_idx = np.nonzero(self.col_row >= 0)
-        rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
-        w = self.blocks[c_idx, s_idx] * lam[c_idx, None]
-        return np.bincount(rows.ravel(), weights=w.ravel(), minlength=6 * len(self.free)) \
-            - self.b
+        rows, c_idx, coef = self.entries()
+        w = coef * lam[c_idx, None]
+        return np.bincount(rows, weights=w.ravel(), minlength=6 * len(self.free)) - self.b
 
 
 def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: float,
@@ -275,11 +285,15 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     upright_edge = np.zeros(M, bool)
     if M:
         V = contacts.vertices
-        lo = np.full((M, 3), np.inf)
-        hi = np.full((M, 3), -np.inf)
-        np.minimum.at(lo, contacts.vertex_contact, V)
-        np.maximum.at(hi, contacts.vertex_contact, V)
-        span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+        if nverts.min() > 0:  # vertices come grouped by contact: reduce each run
+            starts = np.r_[0, np.cumsum(nverts)[:-1]]
+            span = np.maximum.reduceat(V, starts, axis=0) - np.minimum.reduceat(V, starts, axis=0)
+        else:
+            lo = np.full((M, 3), np.inf)
+            hi = np.full((M, 3), -np.inf)
+            np.minimum.at(lo, contacts.vertex_contact, V)
+            np.maximum.at(hi, contacts.vertex_contact, V)
+            span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
         upright_edge = (nverts == 2) & (span[:, 2] > np.hypot(span[:, 0], span[:, 1]))
     no_friction = horizontal & ((nverts >= 3) | upright_edge)
     if side_friction:
@@ -300,8 +314,8 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     m = vc[col_vertex]
     fric = ~no_friction[m]
     dirs = contacts.normal[m] + (fric * mu)[:, None] * (
-        np.cos(theta[j])[:, None] * contacts.tangent_u[m]
-        + np.sin(theta[j])[:, None] * contacts.tangent_v[m])
+        np.cos(theta)[j][:, None] * contacts.tangent_u[m]
+        + np.sin(theta)[j][:, None] * contacts.tangent_v[m])
     p = contacts.vertices[col_vertex]
 
     ncol = len(col_vertex)
@@ -360,9 +374,11 @@ def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]
     col_label = np.where(col_body >= 0, label[np.maximum(col_body, 0)], -1)
     order = np.argsort(col_label, kind="stable")
     bounds = np.searchsorted(col_label[order], np.arange(ncomp + 1))
+    by_label = np.argsort(label, kind="stable")  # bodies of each component, in order
+    body_bounds = np.searchsorted(label[by_label], np.arange(ncomp + 1))
     out = []
     for c in range(ncomp):
-        bodies_c = np.nonzero(label == c)[0]
+        bodies_c = by_label[body_bounds[c]:body_bounds[c + 1]]
         rows = (6 * bodies_c[:, None] + np.arange(6)).ravel()
         out.append((rows, order[bounds[c]:bounds[c + 1]]))
     return out
@@ -581,7 +597,7 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
         return bool(np.linalg.norm(rhs) <= tol)
     # 1) normal forces only (the mean of a vertex's pyramid edges is its normal): passes
     #    no friction down, so lower bodies are not loaded sideways by arbitrary choices
-    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    n_vert, inv = _group_ids(system.col_vertex[cu])
     key = None
     if memo is not None:
         import hashlib
@@ -597,8 +613,8 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=len(vert))
-    normal_coef = np.zeros((len(vert), 6))
+    per_vert = np.bincount(inv, minlength=n_vert)
+    normal_coef = np.zeros((n_vert, 6))
     np.add.at(normal_coef, inv, coef_u)
     normal_coef /= per_vert[:, None]
     x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
@@ -615,6 +631,19 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
     lam[cu] = x
     owner[cu] = pos
     return True
+
+
+def _group_ids(values: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(len(u), inverse)`` of ``u, inverse = np.unique(values, return_inverse=True)``,
+    by counting changes when ``values`` is non-decreasing (a body's or a component's
+    columns come in column order, so their vertices do)."""
+    if len(values) and np.all(values[1:] >= values[:-1]):
+        inv = np.empty(len(values), np.intp)
+        inv[0] = 0
+        np.cumsum(values[1:] != values[:-1], out=inv[1:])
+        return int(inv[-1]) + 1, inv
+    u, inv = np.unique(values, return_inverse=True)
+    return len(u), inv
 
 
 def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | None:
@@ -651,7 +680,7 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
     A = np.zeros((n_rows, len(cu)))
     np.add.at(A, ((6 * blk[un])[:, None] + np.arange(6), col_idx[:, None]), coef[un])
     # 1) normal forces only, 2) with friction (as for one body)
-    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    n_vert, inv = _group_ids(system.col_vertex[cu])
     key = None
     if memo is not None:
         import hashlib
@@ -667,8 +696,8 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=len(vert))
-    An = np.zeros((n_rows, len(vert)))
+    per_vert = np.bincount(inv, minlength=n_vert)
+    An = np.zeros((n_rows, n_vert))
     np.add.at(An, (slice(None), inv), A)
     An /= per_vert
     x = _exact_nnls(An, rhs, tol, nnls)
@@ -701,7 +730,7 @@ def _component_digest(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndar
     bodies_c = rows[::6] // 6
     cr = system.col_row[cols]
     local = np.where(cr >= 0, np.searchsorted(bodies_c, np.maximum(cr, 0)), -1)
-    _, vgroup = np.unique(system.col_vertex[cols], return_inverse=True)
+    _, vgroup = _group_ids(system.col_vertex[cols])
     h = hashlib.blake2b(digest_size=20)
     h.update(f"{len(rows)}|{len(cols)}|{system.blocks is None}".encode())
     for part in (system.free_height[bodies_c], local, vgroup):
@@ -786,13 +815,17 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 continue
         if how is None:
             if dense is None and Dr is None:
-                D = system.D
-                if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES:
-                    dense = D.toarray()
+                if system.blocks is not None and \
+                        6 * len(system.free) * len(system.col_vertex) <= DENSE_MAX_ENTRIES:
+                    dense = True  # each component's block is sliced from ``blocks``
+                elif system.D.shape[0] * system.D.shape[1] <= DENSE_MAX_ENTRIES:
+                    dense = system.D.toarray()
                 else:
-                    Dr = D.tocsr()
-            x, how = _solve_component(system.D, dense, Dr, system, rows, cols, backend,
-                                      exact_possible=floor <= LOAD_PATH_FLOOR)
+                    Dr = system.D.tocsr()
+            sub_dense = _dense_block(system, rows, cols) if dense is True else None
+            x, how = _solve_component(None if dense is True else dense, Dr, system, rows, cols,
+                                      backend, exact_possible=floor <= LOAD_PATH_FLOOR,
+                                      sub_dense=sub_dense)
         if key is not None:
             cache[key] = (x, how)
         used.add(how)
@@ -840,13 +873,28 @@ def _body_floor(system: EquilibriumSystem, r: int, column_mask: np.ndarray | Non
     return float(res @ res) if optimal else 0.0
 
 
-def _solve_component(D, dense, Dr, system, rows, cols, backend, exact_possible: bool = True
-                     ) -> tuple[np.ndarray, str]:
+def _dense_block(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``D[rows][:, cols]`` of one component as a dense array, straight from ``blocks``
+    (the same entries as the assembled matrix: each column acts on two different bodies,
+    so no entry is a sum)."""
+    bodies_c = rows[::6] // 6
+    cr = system.col_row[cols]
+    out = np.zeros((len(rows), len(cols)))
+    for side in (0, 1):
+        use = np.nonzero(cr[:, side] >= 0)[0]
+        local = np.searchsorted(bodies_c, cr[use, side])
+        out[(6 * local)[:, None] + np.arange(6), use[:, None]] = system.blocks[cols[use], side]
+    return out
+
+
+def _solve_component(dense, Dr, system, rows, cols, backend, exact_possible: bool = True,
+                     sub_dense: np.ndarray | None = None) -> tuple[np.ndarray, str]:
     """Solve one component by the frictionless certificate, dense NNLS or the QP
     (``exact_possible`` False: a body is known to miss equilibrium, so the certificate,
-    which needs a zero residual, is skipped)."""
-    if dense is not None:
-        sub_dense = dense[np.ix_(rows, cols)]
+    which needs a zero residual, is skipped).  The component's matrix comes as
+    ``sub_dense``, or is sliced from the whole ``dense`` one or the sparse ``Dr``."""
+    if sub_dense is not None or dense is not None:
+        sub_dense = dense[np.ix_(rows, cols)] if sub_dense is None else sub_dense
         sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
     else:
         sub = Dr[rows][:, cols].tocsc()
@@ -970,12 +1018,10 @@ def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> Stabilit
     rforce[system.free] = np.linalg.norm(phys[:, :3], axis=1)
     rtorque[system.free] = np.linalg.norm(phys[:, 3:], axis=1)
     energy = float(body_energy.sum())
-    out = []
-    for k, c in enumerate(arr.cuboids):
-        g = bodies.of_node[k]
-        out.append(BodyResidual(c.id, bool(body_energy[g] < threshold), float(rforce[g]),
-                                float(rtorque[g]), float(body_energy[g]),
-                                bool(bodies.anchored[g]), int(g)))
+    e, rf, rt = body_energy.tolist(), rforce.tolist(), rtorque.tolist()
+    anchored = bodies.anchored.tolist()
+    out = [BodyResidual(c.id, e[g] < threshold, rf[g], rt[g], e[g], anchored[g], g)
+           for c, g in zip(arr.cuboids, bodies.of_node[:len(arr.cuboids)].tolist())]
     status = "interpenetration" if contacts.penetrations else "ok"
     stable = energy < threshold and not contacts.penetrations
     load = np.bincount(system.col_contact, weights=lam, minlength=contacts.count) \
@@ -1009,7 +1055,7 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
     """The same system in newtons (rows multiplied back by their scale)."""
     S = sp.diags(system.row_scale)
     return replace(system, _D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
-                   row_scale=np.ones_like(system.row_scale), blocks=None)
+                   row_scale=np.ones_like(system.row_scale), blocks=None, _entries=[])
 
 
 __all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",
