@@ -135,3 +135,86 @@ def test_load_path_floor_gives_the_answers_of_the_full_pass(monkeypatch):
             np.testing.assert_array_equal(a, b)
         else:
             assert a == b
+
+
+def test_changed_pairs_are_the_candidate_pairs_with_a_changed_box():
+    from eval.benchmarks.search import rooms
+    from pipeline.contacts import candidate_pairs, changed_pairs
+
+    arr = rooms(56, 3)
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    tol = np.full(len(C), 0.003)
+    i, j = candidate_pairs(C, R, S, tol)
+    rng = np.random.default_rng(3)
+    for n in (1, 2, 5, 20, len(C)):
+        changed = np.zeros(len(C), bool)
+        changed[rng.choice(len(C), n, replace=False)] = True
+        sel = changed[i] | changed[j]
+        a, b = changed_pairs(C, R, S, tol, changed)
+        np.testing.assert_array_equal(a, i[sel])
+        np.testing.assert_array_equal(b, j[sel])
+
+
+def test_group_ids_equal_numpy_unique():
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 9, 200):
+        for values in (np.sort(rng.integers(0, 30, n)), rng.integers(0, 30, n)):
+            u, inv = np.unique(values, return_inverse=True)
+            count, ids = stability._group_ids(values)
+            assert count == len(u)
+            np.testing.assert_array_equal(ids, inv)
+
+
+def test_with_keeps_the_cuboid_views_only_for_the_same_cuboids():
+    from eval.benchmarks.search import rooms
+
+    arr = rooms(30, 1)
+    views = (arr.centers, arr.sizes, arr.masses, arr.corners)
+    same = arr.with_(contacts=(Contact(arr.ids[0], arr.ids[1], "fixed"),))
+    assert all(a is b for a, b in zip(views, (same.centers, same.sizes, same.masses,
+                                                same.corners), strict=True))
+    grown = arr.cuboids[0].with_(size=arr.cuboids[0].size * 2)
+    other = arr.with_(cuboids=(grown, *arr.cuboids[1:]))
+    np.testing.assert_array_equal(other.sizes[0], grown.size)
+    np.testing.assert_array_equal(other.masses[1:], arr.masses[1:])
+    assert other.masses[0] == 8 * arr.masses[0]
+
+
+def _reference_cost(group, assignment, upto=None):
+    """The search's cost as first written (one option at a time, numpy sizes)."""
+    n = len(assignment) if upto is None else upto
+    fixed = apart = 0
+    for e, o, i in zip(group.edges[:n], group.options[:n], assignment[:n], strict=True):
+        f, a, _ = group._cost(e, o[i])
+        fixed += f
+        apart += a
+    exts = {}
+    for o, i in zip(group.options[:n], assignment[:n], strict=True):
+        for x in o[i].extensions:
+            k = (x.box, x.axis, x.side)
+            exts[k] = max(exts.get(k, (0.0, x))[0], x.length), x
+    vol = 0.0
+    for (k_box, axis, _side), (length, _x) in exts.items():
+        s = group.full.sizes[k_box]
+        other = [k for k in range(3) if k != axis]
+        vol += length * s[other[0]] * s[other[1]]
+    return fixed, group.pieces(assignment, n), apart, vol
+
+
+def test_search_cost_equals_the_reference_on_random_assignments():
+    from eval.benchmarks.search import occluded, rooms
+    from pipeline.extend import candidate_edges
+    from pipeline.imagine import repair_overlaps
+    from pipeline.search import SearchStats, _Group, _groups
+
+    arr, _ = repair_overlaps(occluded(rooms(30, seed=1001), np.random.default_rng(1)))
+    rng = np.random.default_rng(5)
+    checked = 0
+    for boxes, edges in _groups(len(arr.cuboids), candidate_edges(arr)):
+        group = _Group(arr, boxes, edges, 0.7, None, SearchStats())
+        for _ in range(20):
+            assignment = tuple(int(rng.integers(len(o))) for o in group.options)
+            for upto in (None, len(assignment) // 2):
+                assert group.cost(assignment, upto) == _reference_cost(group, assignment, upto)
+                checked += 1
+    assert checked > 20
