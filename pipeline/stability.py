@@ -230,17 +230,30 @@ class EquilibriumSystem:
     blocks: np.ndarray  # (ncol, 2, 6) scaled coefficients of each column on its two bodies
     col_row: np.ndarray  # (ncol, 2) free-body row block of each side, -1 when anchored
     free_height: np.ndarray  # (F,) COM height of each free body
-    #: (rows, columns, coefficients) of the entries of ``D``, gathered on first use and
-    #: shared with the copies that differ in ``b`` (tilted gravity)
-    _entries: list = field(default_factory=list, repr=False, compare=False)
+    #: arrays derived on first use (see ``entries``, ``half_pyramid``), shared with the
+    #: copies that differ in ``b`` (tilted gravity)
+    _shared: dict = field(default_factory=dict, repr=False, compare=False)
 
     def entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Flat row indices, column indices and values of the entries of ``D``."""
-        if not self._entries:
+        if "entries" not in self._shared:
             c_idx, s_idx = np.nonzero(self.col_row >= 0)
             rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
-            self._entries.append((rows.ravel(), c_idx, self.blocks[c_idx, s_idx]))
-        return self._entries[0]
+            self._shared["entries"] = (rows.ravel(), c_idx, self.blocks[c_idx, s_idx])
+        return self._shared["entries"]
+
+    def half_pyramid(self) -> np.ndarray:
+        """(ncol,) bool: every other edge of each friction pyramid (an inscribed square)
+        and the single column of each frictionless vertex: a subset of the columns, so a
+        solution over them solves the whole problem too."""
+        if "half" not in self._shared:
+            cv = self.col_vertex
+            n = len(cv)
+            starts = np.r_[0, np.nonzero(cv[1:] != cv[:-1])[0] + 1] if n else np.zeros(0, int)
+            per = np.diff(np.r_[starts, n])
+            j = np.arange(n) - np.repeat(starts, per)
+            self._shared["half"] = (np.repeat(per, per) == 1) | (j % 2 == 0)
+        return self._shared["half"]
 
     @property
     def D(self) -> sp.csc_matrix:
@@ -746,7 +759,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                  column_mask: np.ndarray | None = None, *,
                  components: list[tuple[np.ndarray, np.ndarray]] | None = None,
                  cache: dict | None = None, digests: dict | None = None,
-                 unstable_bound: float | None = None) -> tuple[np.ndarray, str]:
+                 unstable_bound: float | None = None, certificate: bool = False
+                 ) -> tuple[np.ndarray, str]:
     """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
 
     Independent components (free bodies connected through free-free contacts, see
@@ -764,6 +778,12 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     free (:func:`_body_cannot_balance`, a lower bound on E) is not solved: its forces are
     left at zero (backend "bound"), so the E computed from the result is >= the bound too
     but is not the minimum.  Only the verdict of such a result is meaningful.
+
+    ``certificate`` (only whether E is below the threshold matters, as for tilted gravity):
+    a component is first tried with the load path over half of each friction pyramid
+    (:meth:`EquilibriumSystem.half_pyramid`); when that balances every body, its forces
+    solve the whole problem to the load path's tolerance (E is about zero, which any
+    solve would find below the threshold) and are kept without the full pass.
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
@@ -789,6 +809,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             hit = cache.get(key)
             if hit is None and unstable_bound is not None:
                 hit = cache.get(key + b"|bound")
+            if hit is None and certificate:
+                hit = cache.get(key + b"|half")
             if hit is not None:
                 lam[cols] = hit[0]
                 used.add(hit[1])
@@ -798,6 +820,16 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             if grouping is None:
                 grouping = _body_columns(system)
             memo = None if cache is None else cache.setdefault("load_path_memo", {})
+            if certificate and column_mask is None:
+                x = load_path(system, system.half_pyramid(), bodies=rows[::6] // 6,
+                              grouping=grouping, memo=memo)
+                if x is not None:
+                    x = x[cols]
+                    if key is not None:
+                        cache[key + b"|half"] = (x, "load-path")
+                    used.add("load-path")
+                    lam[cols] = x
+                    continue
             proof: list[float] = []
             x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping,
                           memo=memo, proof=proof)
@@ -988,7 +1020,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             b[6 * np.arange(F) + 2] = np.cos(t)
             tilted = replace(system, b=b)
             lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
-                                         digests=digests, unstable_bound=bound)
+                                         digests=digests, unstable_bound=bound,
+                                         certificate=True)
             if _energy(bodies, tilted, lam_t) < threshold:
                 continue  # (the full result is only built when it is the answer)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, threshold, used_t, mu)
@@ -1055,7 +1088,7 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
     """The same system in newtons (rows multiplied back by their scale)."""
     S = sp.diags(system.row_scale)
     return replace(system, _D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
-                   row_scale=np.ones_like(system.row_scale), blocks=None, _entries=[])
+                   row_scale=np.ones_like(system.row_scale), blocks=None, _shared={})
 
 
 __all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",

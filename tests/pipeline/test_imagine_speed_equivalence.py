@@ -218,3 +218,35 @@ def test_search_cost_equals_the_reference_on_random_assignments():
                 assert group.cost(assignment, upto) == _reference_cost(group, assignment, upto)
                 checked += 1
     assert checked > 20
+
+
+def test_half_pyramid_certificate_gives_the_tilt_verdicts_of_the_full_solve(monkeypatch):
+    """Tilted gravity only needs a verdict: a load path over half of each friction
+    pyramid that balances every body proves it; the answers equal the full solves'."""
+    from tests.pipeline.test_search_speed_equivalence import _random_scene, _room_variants, _shelf
+
+    rng = np.random.default_rng(8)
+    scenes = [_random_scene(rng) for _ in range(20)] + [_shelf(4), _shelf(6, rng)]
+    scenes += [v.with_(contacts=()) for v in _room_variants(6, 4)[1]]
+    real = stability.solve_energy
+    used = []
+
+    def spy(*args, certificate=False, **kwargs):
+        used.append(certificate)
+        return real(*args, certificate=certificate, **kwargs)
+
+    def without(*args, certificate=False, **kwargs):
+        return real(*args, **kwargs)
+
+    out = {}
+    for name, fn in (("with", spy), ("without", without)):
+        monkeypatch.setattr(stability, "solve_energy", fn)
+        cache: dict = {}
+        out[name] = [check_stability(arr, tilt_deg=2.0, solve_cache=cache, verdict_only=quick)
+                     for arr in scenes for quick in (False, True)]
+    assert any(used)  # the tilts went through the certificate
+    for a, b in zip(out["with"], out["without"], strict=True):
+        assert (a.stable, a.status, a.unstable_ids) == (b.stable, b.status, b.unstable_ids)
+        if a.stable:  # the answer is the upright one, untouched
+            assert a.energy == b.energy and a.backend == b.backend
+            np.testing.assert_array_equal(a.contact_load, b.contact_load)
