@@ -82,7 +82,7 @@ class _Evaluator:
             self.cache.clear()
         try:
             res = check_stability(arr, mu=self.mu, tilt_deg=self.tilt_deg, contacts=cs,
-                                  solve_cache=self.cache)
+                                  solve_cache=self.cache, expect_unstable=True)
         except InputError:  # a fixed pair pulled apart
             return float("inf"), None, cs
         if res.status != "ok":

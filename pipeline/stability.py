@@ -759,8 +759,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                  column_mask: np.ndarray | None = None, *,
                  components: list[tuple[np.ndarray, np.ndarray]] | None = None,
                  cache: dict | None = None, digests: dict | None = None,
-                 unstable_bound: float | None = None, certificate: bool = False
-                 ) -> tuple[np.ndarray, str]:
+                 unstable_bound: float | None = None, certificate: bool = False,
+                 expect_unstable: bool = False) -> tuple[np.ndarray, str]:
     """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
 
     Independent components (free bodies connected through free-free contacts, see
@@ -784,6 +784,11 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     (:meth:`EquilibriumSystem.half_pyramid`); when that balances every body, its forces
     solve the whole problem to the load path's tolerance (E is about zero, which any
     solve would find below the threshold) and are kept without the full pass.
+
+    ``expect_unstable`` (a hint, as in refining an unstable arrangement): a component
+    that would go to dense NNLS is solved by it first; when that minimum is clearly
+    above zero (:data:`LOAD_PATH_FLOOR`, optimality checked) no certificate of a zero
+    residual can succeed, so the answer is that NNLS solution, as the full order gives.
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
@@ -816,6 +821,19 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 used.add(hit[1])
                 continue
         how, floor = None, 0.0
+        sliced = system.blocks is not None and \
+            6 * len(system.free) * len(system.col_vertex) <= DENSE_MAX_ENTRIES
+        sub_dense = None
+        if (expect_unstable and sliced and backend == "auto" and unstable_bound is None
+                and column_mask is None and len(cols) <= NNLS_MAX_COLUMNS):
+            sub_dense = _dense_block(system, rows, cols)
+            x = _solve_nnls(sub_dense, system.b[rows])
+            if _clear_miss(sub_dense, x, system.b[rows]):
+                if key is not None:
+                    cache[key] = (x, "nnls")
+                used.add("nnls")
+                lam[cols] = x
+                continue
         if backend == "auto" and system.blocks is not None:
             if grouping is None:
                 grouping = _body_columns(system)
@@ -846,15 +864,15 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 lam[cols] = x
                 continue
         if how is None:
-            if dense is None and Dr is None:
-                if system.blocks is not None and \
-                        6 * len(system.free) * len(system.col_vertex) <= DENSE_MAX_ENTRIES:
-                    dense = True  # each component's block is sliced from ``blocks``
-                elif system.D.shape[0] * system.D.shape[1] <= DENSE_MAX_ENTRIES:
+            if sliced:
+                dense = True  # each component's block is sliced from ``blocks``
+            elif dense is None and Dr is None:
+                if system.D.shape[0] * system.D.shape[1] <= DENSE_MAX_ENTRIES:
                     dense = system.D.toarray()
                 else:
                     Dr = system.D.tocsr()
-            sub_dense = _dense_block(system, rows, cols) if dense is True else None
+            if dense is True and sub_dense is None:
+                sub_dense = _dense_block(system, rows, cols)
             x, how = _solve_component(None if dense is True else dense, Dr, system, rows, cols,
                                       backend, exact_possible=floor <= LOAD_PATH_FLOOR,
                                       sub_dense=sub_dense)
@@ -865,6 +883,19 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     if used == {"load-path"}:
         return lam, "load-path"
     return lam, "+".join(sorted(used)) or "none"
+
+
+def _clear_miss(A: np.ndarray, x: np.ndarray, b: np.ndarray) -> bool:
+    """Whether NNLS answer ``x`` of ``min ||A x - b||`` leaves more than
+    :data:`LOAD_PATH_FLOOR` (squared) and satisfies the optimality conditions (gradient
+    >= 0, zero where ``x`` > 0, up to round-off): then no ``x >= 0`` balances to the
+    certificates' tolerance."""
+    res = A @ x - b
+    if res @ res <= LOAD_PATH_FLOOR:
+        return False
+    g = A.T @ res
+    slack = 1e-9 * (1.0 + (np.abs(A).max() if A.size else 0.0) * (np.linalg.norm(b) + 1.0))
+    return bool(g.min(initial=0.0) >= -slack and np.all(np.abs(g[x > 0]) <= slack))
 
 
 def _body_cannot_balance(system: EquilibriumSystem, bodies: np.ndarray,
@@ -951,8 +982,8 @@ def _solve_component(dense, Dr, system, rows, cols, backend, exact_possible: boo
 def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None,
                     backend: str = "auto", side_friction: bool = False,
                     contacts: ContactSet | None = None, tilt_deg: float = 0.0,
-                    solve_cache: dict | None = None, verdict_only: bool = False
-                    ) -> StabilityResult:
+                    solve_cache: dict | None = None, verdict_only: bool = False,
+                    expect_unstable: bool = False) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -981,6 +1012,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         proves unstable (its miss with every contact free already exceeds the threshold,
         ``solve_energy(unstable_bound=...)``) is not solved.  ``stable`` is exact; when it
         is False, ``energy`` and the per-body values are then not the minimum.
+    expect_unstable : bool
+        A hint that the arrangement (refinement's variants) mostly misses equilibrium:
+        upright components are solved by NNLS before the certificates, which are skipped
+        when it leaves a clear residual (``solve_energy``).  Results are identical.
 
     Returns
     -------
@@ -1005,7 +1040,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         {id(cols): _component_digest(system, rows, cols) for rows, cols in comps}
     bound = threshold if verdict_only else None
     lam, used = solve_energy(system, backend, components=comps, cache=solve_cache,
-                             digests=digests, unstable_bound=bound)
+                             digests=digests, unstable_bound=bound,
+                             expect_unstable=expect_unstable)
     result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg

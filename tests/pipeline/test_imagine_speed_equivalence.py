@@ -19,11 +19,11 @@ def _observed(c):
 
 def _plain(monkeypatch) -> None:
     """Every stability check from scratch: no contacts passed in, no shared solutions,
-    full solves (the reference the cached paths must equal)."""
+    no hints, full solves (the reference the cached paths must equal)."""
     real = stability.check_stability
 
     def plain(arr, mu=0.7, threshold=None, backend="auto", side_friction=False, contacts=None,
-              tilt_deg=0.0, solve_cache=None, verdict_only=False):
+              tilt_deg=0.0, solve_cache=None, verdict_only=False, expect_unstable=False):
         return real(arr, mu=mu, threshold=threshold, backend=backend,
                     side_friction=side_friction, tilt_deg=tilt_deg)
 
@@ -250,3 +250,25 @@ def test_half_pyramid_certificate_gives_the_tilt_verdicts_of_the_full_solve(monk
         if a.stable:  # the answer is the upright one, untouched
             assert a.energy == b.energy and a.backend == b.backend
             np.testing.assert_array_equal(a.contact_load, b.contact_load)
+
+
+def test_expect_unstable_hint_gives_identical_results():
+    """NNLS before the certificates, kept when it leaves a clear residual: the same
+    result as the full order, on stable and unstable arrangements."""
+    from tests.conftest import overhang_scene
+    from tests.pipeline.test_search_speed_equivalence import _random_scene
+
+    rng = np.random.default_rng(17)
+    scenes = [_random_scene(rng) for _ in range(20)]
+    scenes += [overhang_scene(f) for f in (0.2, 0.45, 0.55, 0.8)] + [_decks(), _board()]
+    shortcut = 0
+    for arr in scenes:
+        for tilt in (0.0, 2.0):
+            plain = check_stability(arr, tilt_deg=tilt)
+            hinted = check_stability(arr, tilt_deg=tilt, expect_unstable=True)
+            assert (plain.stable, plain.energy, plain.status, plain.backend) == \
+                (hinted.stable, hinted.energy, hinted.status, hinted.backend)
+            assert plain.bodies == hinted.bodies
+            np.testing.assert_array_equal(plain.contact_load, hinted.contact_load)
+            shortcut += plain.energy > 1e-3
+    assert shortcut > 5
