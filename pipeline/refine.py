@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import ContactSet, find_contacts, update_contacts
+from .contacts import ContactSet, find_contacts, update_contacts, update_contacts_of_one
 from .errors import InputError
 from .model import Arrangement, Cuboid
 from .stability import check_stability
@@ -76,8 +76,13 @@ class _Evaluator:
             return self.base_contacts
         return update_contacts(arr, self.base, self.base_contacts)
 
-    def __call__(self, arr: Arrangement) -> tuple[float, object, ContactSet]:
-        cs = self.contacts(arr)
+    def variants(self, arrs: list[Arrangement], k: int) -> list[ContactSet]:
+        """Contacts of variants of the base that differ in cuboid ``k`` (one batch)."""
+        return update_contacts_of_one(arrs, self.base, self.base_contacts, k)
+
+    def __call__(self, arr: Arrangement, cs: ContactSet | None = None
+                 ) -> tuple[float, object, ContactSet]:
+        cs = self.contacts(arr) if cs is None else cs
         if len(self.cache) > SOLVE_CACHE_MAX:
             self.cache.clear()
         try:
@@ -186,13 +191,18 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
             c = arr.cuboids[k]
             x0 = np.concatenate([c.center, c.size])
             grad = np.zeros(6)
+            moves, trials = [], []
             for p in range(6):
                 for sgn in (1, -1):
                     x = x0.copy()
                     x[p] += sgn * h_fd
-                    e, _, _ = energy(_with_params(arr, k, x[:3], x[3:]))
-                    evals += 1
-                    grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
+                    moves.append((p, sgn))
+                    trials.append(_with_params(arr, k, x[:3], x[3:]))
+            for (p, sgn), trial, cs in zip(moves, trials, energy.variants(trials, k),
+                                           strict=True):
+                e, _, _ = energy(trial, cs)
+                evals += 1
+                grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
             if best is None or np.linalg.norm(grad) > np.linalg.norm(best[1]):
                 best = (k, grad)
         if best is None or np.linalg.norm(best[1]) == 0:

@@ -272,3 +272,34 @@ def test_expect_unstable_hint_gives_identical_results():
             np.testing.assert_array_equal(plain.contact_load, hinted.contact_load)
             shortcut += plain.energy > 1e-3
     assert shortcut > 5
+
+
+def test_contacts_of_one_box_variants_in_one_batch_equal_one_by_one():
+    from eval.benchmarks.search import rooms
+    from pipeline.contacts import find_contacts, update_contacts, update_contacts_of_one
+    from pipeline.refine import _with_params
+
+    rng = np.random.default_rng(6)
+    fields = ("a", "b", "normal", "tangent_u", "tangent_v", "vertices", "vertex_contact", "gap")
+    checked = 0
+    for arr in (_decks(), rooms(30, 2)):
+        cs = find_contacts(arr)
+        scale = arr.scale_length()
+        for k in rng.choice(len(arr.cuboids), min(5, len(arr.cuboids)), replace=False):
+            c = arr.cuboids[k]
+            x0 = np.concatenate([c.center, c.size])
+            variants = []
+            for h in (1e-3 * scale, 0.1 * scale, -0.3 * scale):
+                for p in range(6):
+                    x = x0.copy()
+                    x[p] += h
+                    variants.append(_with_params(arr, k, x[:3], x[3:]))
+            variants.append(arr)  # unchanged: answered on its own
+            for v, got in zip(variants, update_contacts_of_one(variants, arr, cs, k),
+                              strict=True):
+                ref = update_contacts(v, arr, cs)
+                for f in fields:
+                    np.testing.assert_array_equal(getattr(got, f), getattr(ref, f))
+                assert got.penetrations == ref.penetrations
+                checked += 1
+    assert checked > 100
