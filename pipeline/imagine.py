@@ -543,7 +543,7 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
         found = sub if stands(sub, sub_cs) else None  # the search may have kept a spare joint
         if found is None:
             found = next((g for g, cs in _growths(sub, [c.a, c.b], views or [], margin,
-                                                   with_contacts=True)
+                                                   with_contacts=True, contacts=sub_cs)
                           if stands(g, cs)), None)
         if found is None and len(group) <= max_group:
             try:
@@ -709,7 +709,7 @@ GROWTH_FRACTIONS = (0.25, 0.5, 1.0)
 
 
 def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
-             margin: float, with_contacts: bool = False) -> Iterator:
+             margin: float, with_contacts: bool = False, contacts=None) -> Iterator:
     """Variants of ``arr`` with one horizontal face of one of the two boxes ``ids``
     pushed out, into space no view saw empty and without interpenetration, smallest
     added volume first.  A face is pushed by :data:`GROWTH_FRACTIONS` of the box's extent
@@ -717,7 +717,8 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
     side (the paper's extension length, horizontally: under a box that overhangs), and
     by the same fractions of the box's widest horizontal extent (a part seen edge-on,
     such as a pillar seen only from the front, has almost no depth).  ``with_contacts``:
-    yield ``(arrangement, its contacts)``."""
+    yield ``(arrangement, its contacts)``; ``contacts`` (those of ``arr``) lets them be
+    updated for the one grown box instead of found anew."""
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
     out = []
@@ -751,8 +752,18 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
                     out.append((x.volume(arr.sizes), len(out), c.id,
                                 arr.with_(cuboids=tuple(cubs))))
     out.sort(key=lambda t: t[:2])
+    from .contacts import update_contacts_of_one
+
+    found: dict[int, object] = {}  # id of a variant -> its contacts
     for _v, _n, cid, g in out:  # lazily: the caller stops at the first that stands
-        cs = find_contacts(g)
+        if contacts is None:
+            cs = find_contacts(g)
+        else:
+            if id(g) not in found:  # all variants of this box at once (one batch)
+                mine = [t[3] for t in out if t[2] == cid]
+                found.update(zip(map(id, mine), update_contacts_of_one(
+                    mine, arr, contacts, arr.index[cid])))
+            cs = found[id(g)]
         if not any(cid in (a, b) for a, b, _ in cs.penetrations):
             yield (g, cs) if with_contacts else g
 
