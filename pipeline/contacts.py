@@ -165,6 +165,25 @@ def candidate_pairs(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarra
     return np.concatenate(out_i), np.concatenate(out_j)
 
 
+def changed_pairs(centers: np.ndarray, rotations: np.ndarray, sizes: np.ndarray,
+                  margin: np.ndarray, changed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of :func:`candidate_pairs` that have a ``changed (K,)`` box, in the same
+    order (by ``i``, then ``j``), testing only the changed boxes against all."""
+    K = len(centers)
+    ch = np.nonzero(changed)[0]
+    if K < 2 or not len(ch):
+        return np.zeros(0, int), np.zeros(0, int)
+    ext = np.einsum("kij,kj->ki", np.abs(rotations), sizes / 2.0)
+    ext = ext + np.broadcast_to(np.asarray(margin, float), (K,))[:, None]
+    lo, hi = centers - ext, centers + ext
+    a, b = np.nonzero(np.all((lo[ch, None] <= hi[None]) & (lo[None] <= hi[ch, None]), axis=2))
+    a = ch[a]
+    keep = a != b
+    a, b = a[keep], b[keep]
+    codes = np.unique(np.minimum(a, b) * K + np.maximum(a, b))
+    return codes // K, codes % K
+
+
 def sat_separation(ca: np.ndarray, Ra: np.ndarray, ha: np.ndarray, cb: np.ndarray,
                    Rb: np.ndarray, hb: np.ndarray, tol: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -323,17 +342,17 @@ def _contact_parts(arr: Arrangement, rel_tol: float, changed: np.ndarray | None)
     names = arr.ids + arr.support_ids
     C, R, S = arr.centers, arr.rotations, arr.sizes
     H = S / 2.0
-    corners = box_corners(C, R, S) if K else np.zeros((0, 8, 3))
+    corners = arr.corners
     box_tol = np.maximum(rel_tol * (S.min(axis=1) if K else np.zeros(0)), CONTACT_ABS_TOL)
 
     parts = []  # (a, b, normal, verts, vidx, u, v, gap, ok)
     penetrations: list[tuple[str, str, float]] = []
 
     # ---- cuboid / cuboid
-    i, j = candidate_pairs(C, R, S, box_tol)
-    if changed is not None and len(i):
-        sel = changed[i] | changed[j]
-        i, j = i[sel], j[sel]
+    if changed is None:
+        i, j = candidate_pairs(C, R, S, box_tol)
+    else:
+        i, j = changed_pairs(C, R, S, box_tol, changed)
     if len(i):
         tol = np.minimum(box_tol[i], box_tol[j])
         sep, axis, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
@@ -403,9 +422,15 @@ def update_contacts(arr: Arrangement, base: Arrangement, base_contacts: ContactS
     if changed.sum() * 2 > K:
         return find_contacts(arr, rel_tol)
     parts, pens = _contact_parts(arr, rel_tol, changed)
+    return _merge_carried(names, K, len(arr.supports), changed, parts, pens, base_contacts)
+
+
+def _merge_carried(names, K, n_supports, changed, parts, pens, base_contacts) -> ContactSet:
+    """The contacts recomputed for the ``changed`` cuboids (``parts``, ``pens``) merged
+    with those of ``base_contacts`` between unchanged nodes, in canonical order."""
     # carried-over contacts: neither node changed
     bc = base_contacts
-    node_changed = np.r_[changed, np.zeros(len(arr.supports), bool)]
+    node_changed = np.r_[changed, np.zeros(n_supports, bool)]
     keep = ~(node_changed[bc.a] | node_changed[bc.b]) if bc.count else np.zeros(0, bool)
     kept = np.nonzero(keep)[0]
     if len(kept):
@@ -431,6 +456,113 @@ def update_contacts(arr: Arrangement, base: Arrangement, base_contacts: ContactS
     return ContactSet(names, K, out.a[order], out.b[order], out.normal[order],
                       out.tangent_u[order], out.tangent_v[order], out.vertices[vorder],
                       vnew[vorder], out.gap[order], tuple(pens))
+
+
+def update_contacts_of_one(variants: list[Arrangement], base: Arrangement,
+                           base_contacts: ContactSet, k: int,
+                           rel_tol: float = CONTACT_REL_TOL) -> list[ContactSet]:
+    """``[update_contacts(v, base, base_contacts) for v in variants]`` for variants that
+    differ from ``base`` in cuboid ``k`` alone (refinement's finite differences), with the
+    pairs of all variants computed in one batch: the same per-pair arithmetic, so the
+    same contact sets.  A variant that differs elsewhere too is updated on its own."""
+    K = len(base.cuboids)
+    names = base.ids + base.support_ids
+    out: list = [None] * len(variants)
+    batch = []
+    for n, v in enumerate(variants):
+        if v.ids != base.ids or v.support_ids != base.support_ids or K < 2:
+            out[n] = update_contacts(v, base, base_contacts, rel_tol)
+            continue
+        ch = changed_cuboids(v, base)
+        if not (ch[k] and ch.sum() == 1):
+            out[n] = update_contacts(v, base, base_contacts, rel_tol)
+            continue
+        batch.append(n)
+    if not batch:
+        return out
+    N = len(batch)
+    changed = np.zeros(K, bool)
+    changed[k] = True
+    C, R, S = base.centers, base.rotations, base.sizes
+    Ck = np.stack([variants[n].cuboids[k].center for n in batch])
+    Sk = np.stack([variants[n].cuboids[k].size for n in batch])
+    Rk = np.repeat(R[k][None], N, axis=0)
+    corners, corners_k = base.corners, box_corners(Ck, Rk, Sk)
+    box_tol = np.maximum(rel_tol * S.min(axis=1), CONTACT_ABS_TOL)
+    tol_k = np.maximum(rel_tol * Sk.min(axis=1), CONTACT_ABS_TOL)
+    # broad phase of box k in each variant against the others (as candidate_pairs)
+    ext = np.einsum("kij,kj->ki", np.abs(R), S / 2.0) + box_tol[:, None]
+    ext_k = np.einsum("kij,kj->ki", np.abs(Rk), Sk / 2.0) + tol_k[:, None]
+    lo, hi, lo_k, hi_k = C - ext, C + ext, Ck - ext_k, Ck + ext_k
+    near = np.all((lo_k[:, None] <= hi[None]) & (lo[None] <= hi_k[:, None]), axis=2)
+    near[:, k] = False
+    vi, j = np.nonzero(near)  # by variant, then j ascending: the canonical pair order
+    first = j < k  # pair (j, k): box j is a
+    # per pair: a and b sides, from the base or from the variant's box k
+    ca = np.where(first[:, None], C[j], Ck[vi])
+    cb = np.where(first[:, None], Ck[vi], C[j])
+    ra = np.where(first[:, None, None], R[j], R[k])
+    rb = np.where(first[:, None, None], R[k], R[j])
+    ha = np.where(first[:, None], S[j], Sk[vi]) / 2.0
+    hb = np.where(first[:, None], Sk[vi], S[j]) / 2.0
+    cra = np.where(first[:, None, None], corners[j], corners_k[vi])
+    crb = np.where(first[:, None, None], corners_k[vi], corners[j])
+    ia, ib = np.where(first, j, k), np.where(first, k, j)
+    tol = np.minimum(np.where(first, box_tol[j], tol_k[vi]), np.where(first, tol_k[vi], box_tol[j]))
+    pens: list[list] = [[] for _ in range(N)]
+    pair_parts: list = [None] * N
+    if len(j):
+        sep, axis, _ = sat_separation(ca, ra, ha, cb, rb, hb, tol)
+        for q in np.nonzero(sep < -tol)[0]:
+            pens[vi[q]].append((names[ia[q]], names[ib[q]], float(-sep[q])))
+        t = np.nonzero(np.abs(sep) <= tol)[0]
+        if len(t):
+            normal = -axis[t]
+            mask_a = _features(cra[t], normal, tol[t], "min")
+            mask_b = _features(crb[t], normal, tol[t], "max")
+            verts, vidx, u, v, ok = _interfaces(cra[t], mask_a, crb[t], mask_b, normal, tol[t])
+            bounds = np.searchsorted(vi[t], np.arange(N + 1))
+            vbounds = np.searchsorted(vidx, bounds)
+            for n in range(N):
+                r0, r1 = bounds[n], bounds[n + 1]
+                if r1 > r0:
+                    w0, w1 = vbounds[n], vbounds[n + 1]
+                    pair_parts[n] = (ia[t[r0:r1]], ib[t[r0:r1]], normal[r0:r1], verts[w0:w1],
+                                     vidx[w0:w1] - r0, u[r0:r1], v[r0:r1], sep[t[r0:r1]],
+                                     ok[r0:r1])
+    # box k against the supports (each variant as _contact_parts does it, then one batch)
+    sup_rows = []  # (variant, support node, normal, flat corners, mask, gap)
+    for n in range(N):
+        ck = corners_k[n:n + 1]
+        for s_idx, sup in enumerate(base.supports):
+            d = (ck - sup.point) @ sup.normal  # (1, 8)
+            dmin = d.min(axis=1)
+            if dmin[0] < -tol_k[n]:
+                pens[n].append((names[k], sup.id, float(-dmin[0])))
+            if abs(dmin[0]) <= tol_k[n]:
+                normal = np.broadcast_to(sup.normal, (1, 3)).copy()
+                mask = d <= dmin[:, None] + tol_k[n]
+                flat = ck - d[:, :, None] * normal[:, None, :]
+                sup_rows.append((n, K + s_idx, normal, flat, mask, dmin))
+    sup_parts: list = [None] * N
+    if sup_rows:
+        vs = np.array([r[0] for r in sup_rows])
+        normal, flat, mask, gap = (np.concatenate([r[q] for r in sup_rows]) for q in (2, 3, 4, 5))
+        verts, vidx, u, v, ok = _interfaces(flat, mask, None, None, normal, tol_k[vs])
+        bounds = np.searchsorted(vs, np.arange(N + 1))
+        vbounds = np.searchsorted(vidx, bounds)
+        for n in range(N):
+            r0, r1 = bounds[n], bounds[n + 1]
+            if r1 > r0:
+                w0, w1 = vbounds[n], vbounds[n + 1]
+                sup_parts[n] = (np.full(r1 - r0, k), np.array([r[1] for r in sup_rows[r0:r1]]),
+                                normal[r0:r1], verts[w0:w1], vidx[w0:w1] - r0, u[r0:r1],
+                                v[r0:r1], gap[r0:r1], ok[r0:r1])
+    for n, m in enumerate(batch):
+        parts = [p for p in (pair_parts[n], sup_parts[n]) if p is not None]
+        out[m] = _merge_carried(names, K, len(base.supports), changed, parts, pens[n],
+                                base_contacts)
+    return out
 
 
 def _assemble(names, K, parts, penetrations) -> ContactSet:
@@ -462,5 +594,6 @@ def _assemble(names, K, parts, penetrations) -> ContactSet:
     )
 
 
-__all__ = ["ContactSet", "find_contacts", "update_contacts", "changed_cuboids", "cross", "tangent_frame", "pair_tolerance", "candidate_pairs",
+__all__ = ["ContactSet", "find_contacts", "update_contacts", "update_contacts_of_one",
+           "changed_cuboids", "cross", "tangent_frame", "pair_tolerance", "candidate_pairs",
            "sat_separation", "CORNER_SIGNS"]

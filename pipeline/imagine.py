@@ -751,13 +751,17 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
     tilt = ROBUST_TILT_DEG if tilt_deg is None else tilt_deg
     objects = {c.id: c.object for c in final.cuboids}
     tried = relaxed = 0
+    # component solutions shared by every check below (digest-keyed: exact reuse)
+    cache: dict = {}
 
-    def stands(arr: Arrangement) -> bool:
+    def stands(arr: Arrangement, cs=None) -> bool:
         try:
-            return check_stability(arr, mu=mu, threshold=threshold, tilt_deg=tilt).stable
+            return check_stability(arr, mu=mu, threshold=threshold, tilt_deg=tilt, contacts=cs,
+                                   solve_cache=cache, verdict_only=True).stable
         except InputError:  # a fixed pair pulled apart
             return False
 
+    final_cs = None  # contacts of the current geometry (type changes keep them)
     for i in range(len(final.contacts)):
         c = final.contacts[i]
         if c.type != "fixed" or c.a not in objects:
@@ -770,18 +774,23 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
         contacts = tuple(replace(x, type="touch") if j == i else x
                          for j, x in enumerate(final.contacts))
         trial = final.with_(contacts=contacts, stability=None)
-        group = _touching_group(trial, c.a)
+        if final_cs is None:
+            final_cs = find_contacts(trial)
+        group = _touching_group(trial, c.a, final_cs)
         sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
                           contacts=tuple(x for x in contacts
                                          if x.a in group and (x.b in group or x.b not in objects)))
-        found = sub if stands(sub) else None  # the search may have kept a spare joint
+        sub_cs = find_contacts(sub)
+        found = sub if stands(sub, sub_cs) else None  # the search may have kept a spare joint
         if found is None:
-            found = next((g for g in _growths(sub, [c.a, c.b], views or [], margin)
-                          if stands(g)), None)
+            found = next((g for g, cs in _growths(sub, [c.a, c.b], views or [], margin,
+                                                   with_contacts=True, contacts=sub_cs)
+                          if stands(g, cs)), None)
         if found is None and len(group) <= max_group:
             try:
                 refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt,
-                                 deadline=deadline).arrangement
+                                 deadline=deadline, contacts=sub_cs,
+                                 solve_cache=cache).arrangement
             except InputError:
                 refined = None
             if refined is not None and stands(refined):
@@ -794,6 +803,7 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
                          for a, b, _ in find_contacts(merged).penetrations):
             continue
         final = merged
+        final_cs = None if moved else final_cs
         relaxed += 1
     return final, tried, relaxed
 
@@ -994,14 +1004,16 @@ GROWTH_FRACTIONS = (0.25, 0.5, 1.0)
 
 
 def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
-             margin: float) -> Iterator[Arrangement]:
+             margin: float, with_contacts: bool = False, contacts=None) -> Iterator:
     """Variants of ``arr`` with one horizontal face of one of the two boxes ``ids``
     pushed out, into space no view saw empty and without interpenetration, smallest
     added volume first.  A face is pushed by :data:`GROWTH_FRACTIONS` of the box's extent
     and, when it faces the other box, until it reaches that box's centre or its far
     side (the paper's extension length, horizontally: under a box that overhangs), and
     by the same fractions of the box's widest horizontal extent (a part seen edge-on,
-    such as a pillar seen only from the front, has almost no depth)."""
+    such as a pillar seen only from the front, has almost no depth).  ``with_contacts``:
+    yield ``(arrangement, its contacts)``; ``contacts`` (those of ``arr``) lets them be
+    updated for the one grown box instead of found anew."""
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
     out = []
@@ -1035,15 +1047,27 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
                     out.append((x.volume(arr.sizes), len(out), c.id,
                                 arr.with_(cuboids=tuple(cubs))))
     out.sort(key=lambda t: t[:2])
+    from .contacts import update_contacts_of_one
+
+    found: dict[int, object] = {}  # id of a variant -> its contacts
     for _v, _n, cid, g in out:  # lazily: the caller stops at the first that stands
-        if not any(cid in (a, b) for a, b, _ in find_contacts(g).penetrations):
-            yield g
+        if contacts is None:
+            cs = find_contacts(g)
+        else:
+            if id(g) not in found:  # all variants of this box at once (one batch)
+                mine = [t[3] for t in out if t[2] == cid]
+                found.update(zip(map(id, mine), update_contacts_of_one(
+                    mine, arr, contacts, arr.index[cid])))
+            cs = found[id(g)]
+        if not any(cid in (a, b) for a, b, _ in cs.penetrations):
+            yield (g, cs) if with_contacts else g
 
 
-def _touching_group(arr: Arrangement, start: str) -> set[str]:
+def _touching_group(arr: Arrangement, start: str, cs=None) -> set[str]:
     """Ids of the cuboids connected to ``start`` through touching cuboids (supports do
-    not connect: what stands on the floor apart from each other is independent)."""
-    cs = find_contacts(arr)
+    not connect: what stands on the floor apart from each other is independent);
+    ``cs``: the contacts of ``arr`` when known."""
+    cs = find_contacts(arr) if cs is None else cs
     nbrs: dict[str, set[str]] = {}
     for a, b in cs.pairs:
         nbrs.setdefault(a, set()).add(b)

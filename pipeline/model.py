@@ -221,6 +221,14 @@ class Arrangement:
         m.setflags(write=False)
         return m
 
+    @cached_property
+    def corners(self) -> np.ndarray:
+        """(K, 8, 3) float, the corners of every cuboid (see :func:`box_corners`)."""
+        out = box_corners(self.centers, self.rotations, self.sizes) if self.cuboids \
+            else np.zeros((0, 8, 3))
+        out.setflags(write=False)
+        return out
+
     @property
     def support_ids(self) -> tuple[str, ...]:
         return tuple(s.id for s in self.supports)
@@ -239,14 +247,25 @@ class Arrangement:
         return {c.key for c in self.contacts if c.type == "fixed"}
 
     def with_(self, **changes: Any) -> Arrangement:
-        """A copy with some fields replaced (cached views are rebuilt)."""
-        return replace(self, **changes)
+        """A copy with some fields replaced (cached views of the cuboids are kept when
+        the cuboids are the same, else rebuilt)."""
+        out = replace(self, **changes)
+        if out.cuboids is self.cuboids:
+            for name in _CUBOID_VIEWS:
+                if name in self.__dict__:
+                    out.__dict__[name] = self.__dict__[name]
+        return out
 
     def scale_length(self) -> float:
         """A characteristic length of the scene: the median of all box edges, metres."""
         if not self.cuboids:
             return 1.0
         return float(np.median(self.sizes))
+
+
+#: cached views of :class:`Arrangement` that depend on its cuboids alone
+_CUBOID_VIEWS = ("ids", "index", "centers", "rotations", "sizes", "densities", "masses",
+                 "corners")
 
 
 def _stack(items: list[np.ndarray], empty_shape: tuple[int, ...]) -> np.ndarray:

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .contacts import ContactSet, find_contacts, update_contacts
+from .contacts import ContactSet, find_contacts, update_contacts, update_contacts_of_one
 from .errors import InputError
 from .model import Arrangement, Cuboid
 from .stability import check_stability
@@ -62,10 +62,11 @@ class _Evaluator:
     (``check_stability(solve_cache=...)``).
     """
 
-    def __init__(self, arr: Arrangement, mu: float, tilt_deg: float) -> None:
+    def __init__(self, arr: Arrangement, mu: float, tilt_deg: float,
+                 contacts: ContactSet | None = None, cache: dict | None = None) -> None:
         self.mu, self.tilt_deg = mu, tilt_deg
-        self.cache: dict[bytes, tuple] = {}
-        self.rebase(arr, find_contacts(arr))
+        self.cache: dict[bytes, tuple] = {} if cache is None else cache
+        self.rebase(arr, find_contacts(arr) if contacts is None else contacts)
 
     def rebase(self, arr: Arrangement, contacts: ContactSet) -> None:
         self.base, self.base_contacts = arr, contacts
@@ -75,13 +76,18 @@ class _Evaluator:
             return self.base_contacts
         return update_contacts(arr, self.base, self.base_contacts)
 
-    def __call__(self, arr: Arrangement) -> tuple[float, object, ContactSet]:
-        cs = self.contacts(arr)
+    def variants(self, arrs: list[Arrangement], k: int) -> list[ContactSet]:
+        """Contacts of variants of the base that differ in cuboid ``k`` (one batch)."""
+        return update_contacts_of_one(arrs, self.base, self.base_contacts, k)
+
+    def __call__(self, arr: Arrangement, cs: ContactSet | None = None
+                 ) -> tuple[float, object, ContactSet]:
+        cs = self.contacts(arr) if cs is None else cs
         if len(self.cache) > SOLVE_CACHE_MAX:
             self.cache.clear()
         try:
             res = check_stability(arr, mu=self.mu, tilt_deg=self.tilt_deg, contacts=cs,
-                                  solve_cache=self.cache)
+                                  solve_cache=self.cache, expect_unstable=True)
         except InputError:  # a fixed pair pulled apart
             return float("inf"), None, cs
         if res.status != "ok":
@@ -152,17 +158,20 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
 
 
 def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float = 1e-5,
-           tilt_deg: float = 0.0, deadline: float | None = None) -> RefineResult:
+           tilt_deg: float = 0.0, deadline: float | None = None,
+           contacts: ContactSet | None = None, solve_cache: dict | None = None) -> RefineResult:
     """Lower the stability energy of ``arr`` keeping its contacts (see module docstring).
 
     With ``tilt_deg`` > 0 the energy is that of the first tilt of gravity by that angle
     under which the arrangement fails (``check_stability(tilt_deg=...)``): the result then
     stands with a margin.  ``deadline`` (a ``time.perf_counter()`` value) stops the steps
-    early; the best arrangement so far is returned.
+    early; the best arrangement so far is returned.  ``contacts`` (those of ``arr``) and
+    ``solve_cache`` (component solutions kept by the caller, see ``check_stability``)
+    only save work.
     """
     import time
 
-    energy = _Evaluator(arr, mu, tilt_deg)
+    energy = _Evaluator(arr, mu, tilt_deg, contacts, solve_cache)
     E0, res, _ = energy(arr)
     evals = 1
     E = E0
@@ -182,13 +191,18 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
             c = arr.cuboids[k]
             x0 = np.concatenate([c.center, c.size])
             grad = np.zeros(6)
+            moves, trials = [], []
             for p in range(6):
                 for sgn in (1, -1):
                     x = x0.copy()
                     x[p] += sgn * h_fd
-                    e, _, _ = energy(_with_params(arr, k, x[:3], x[3:]))
-                    evals += 1
-                    grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
+                    moves.append((p, sgn))
+                    trials.append(_with_params(arr, k, x[:3], x[3:]))
+            for (p, sgn), trial, cs in zip(moves, trials, energy.variants(trials, k),
+                                           strict=True):
+                e, _, _ = energy(trial, cs)
+                evals += 1
+                grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
             if best is None or np.linalg.norm(grad) > np.linalg.norm(best[1]):
                 best = (k, grad)
         if best is None or np.linalg.norm(best[1]) == 0:

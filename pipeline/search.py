@@ -155,6 +155,17 @@ class _Group:
         eager = {id(e) for e in self.edges if _short_join(arr, e)}
         self._cost = lambda e, o: _option_cost(e, o, id(e) in eager)
         self.options = [sorted(e.options, key=lambda o: self._cost(e, o)) for e in self.edges]
+        # per option: (fixed, apart, ((face, length), ...)); per face the two extents
+        # across it, as Python floats (the sums in :meth:`cost` do the same arithmetic)
+        self._terms = [[(*self._cost(e, o)[:2],
+                         tuple(((x.box, x.axis, x.side), x.length) for x in o.extensions))
+                        for o in opts] for e, opts in zip(self.edges, self.options)]
+        self._across = {}
+        for opts in self._terms:
+            for *_, exts in opts:
+                for face, _length in exts:
+                    s = arr.sizes[face[0]].tolist()
+                    self._across[face] = [s[k] for k in range(3) if k != face[1]]
         # parts of multi-part objects, and the levels of the edges that can join two
         self._object_of = {k: arr.cuboids[k].object for k in boxes
                            if arr.cuboids[k].object is not None}
@@ -268,20 +279,18 @@ class _Group:
         completion, compared in order."""
         n = len(assignment) if upto is None else upto
         fixed = apart = 0
-        for e, o, i in zip(self.edges[:n], self.options[:n], assignment[:n]):
-            f, a, _ = self._cost(e, o[i])
+        exts: dict = {}  # face -> longest push, in order of first appearance
+        for terms, i in zip(self._terms[:n], assignment[:n]):
+            f, a, pushes = terms[i]
             fixed += f
             apart += a
-        exts = {}
-        for o, i in zip(self.options[:n], assignment[:n]):
-            for x in o[i].extensions:
-                k = (x.box, x.axis, x.side)
-                exts[k] = max(exts.get(k, (0.0, x))[0], x.length), x
+            for face, length in pushes:
+                exts[face] = max(exts.get(face, 0.0), length)
         vol = 0.0
-        for (box, axis, _side), (length, _x) in exts.items():
-            s = self.full.sizes[box]
-            other = [k for k in range(3) if k != axis]
-            vol += length * s[other[0]] * s[other[1]]
+        across = self._across
+        for face, length in exts.items():
+            s0, s1 = across[face]
+            vol += length * s0 * s1
         return fixed, self.pieces(assignment, n), apart, vol
 
     # -- search

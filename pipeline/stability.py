@@ -74,7 +74,7 @@ the desk standing on the floor: statics accepted it, both engines drop it 0.5 m)
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -89,7 +89,7 @@ from .constants import (
 )
 from .contacts import ContactSet, cross, find_contacts
 from .errors import InputError
-from .model import Arrangement, box_corners, is_support_id
+from .model import Arrangement, is_support_id
 
 log = logging.getLogger(__name__)
 
@@ -193,7 +193,10 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     roots = np.array([find(k) for k in range(K + S)])
     # all supports form one anchored body
     sup_roots = set(roots[K:].tolist())
-    roots = np.where(np.isin(roots, list(sup_roots)), K + S, roots) if S else roots
+    if S:
+        is_sup = np.zeros(K + S, bool)
+        is_sup[list(sup_roots)] = True
+        roots = np.where(is_sup[roots], K + S, roots)
     uniq, of_node = np.unique(roots, return_inverse=True)
     G = len(uniq)
     anchored = np.zeros(G, bool)
@@ -203,7 +206,7 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     mass = np.bincount(of_node[:K], weights=masses, minlength=G)
     com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
                     for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
-    corners = box_corners(arr.centers, arr.rotations, arr.sizes) if K else np.zeros((0, 8, 3))
+    corners = arr.corners
     dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
     size = np.zeros(G)
     np.maximum.at(size, of_node[:K], dist)
@@ -232,16 +235,38 @@ class EquilibriumSystem:
     blocks: np.ndarray  # (ncol, 2, 6) scaled coefficients of each column on its two bodies
     col_row: np.ndarray  # (ncol, 2) free-body row block of each side, -1 when anchored
     free_height: np.ndarray  # (F,) COM height of each free body
+    #: arrays derived on first use (see ``entries``, ``half_pyramid``), shared with the
+    #: copies that differ in ``b`` (tilted gravity)
+    _shared: dict = field(default_factory=dict, repr=False, compare=False)
+
+    def entries(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Flat row indices, column indices and values of the entries of ``D``."""
+        if "entries" not in self._shared:
+            c_idx, s_idx = np.nonzero(self.col_row >= 0)
+            rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
+            self._shared["entries"] = (rows.ravel(), c_idx, self.blocks[c_idx, s_idx])
+        return self._shared["entries"]
+
+    def half_pyramid(self) -> np.ndarray:
+        """(ncol,) bool: every other edge of each friction pyramid (an inscribed square)
+        and the single column of each frictionless vertex: a subset of the columns, so a
+        solution over them solves the whole problem too."""
+        if "half" not in self._shared:
+            cv = self.col_vertex
+            n = len(cv)
+            starts = np.r_[0, np.nonzero(cv[1:] != cv[:-1])[0] + 1] if n else np.zeros(0, int)
+            per = np.diff(np.r_[starts, n])
+            j = np.arange(n) - np.repeat(starts, per)
+            self._shared["half"] = (np.repeat(per, per) == 1) | (j % 2 == 0)
+        return self._shared["half"]
 
     @property
     def D(self) -> sp.csc_matrix:
         """(6F, ncol) the scaled equilibrium matrix (assembled lazily: certificates that
         work body by body never need it)."""
         if self._D is None:
-            c_idx, s_idx = np.nonzero(self.col_row >= 0)
-            rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
-            D = sp.csc_matrix((self.blocks[c_idx, s_idx].ravel(),
-                               (rows.ravel(), np.repeat(c_idx, 6))),
+            rows, c_idx, coef = self.entries()
+            D = sp.csc_matrix((coef.ravel(), (rows, np.repeat(c_idx, 6))),
                               shape=(6 * len(self.free), len(self.col_vertex)))
             object.__setattr__(self, "_D", D)
         return self._D
@@ -250,11 +275,9 @@ class EquilibriumSystem:
         """(6F,) ``D lambda - b``."""
         if self._D is not None or self.blocks is None:
             return self.D @ lam - self.b
-        c_idx, s_idx = np.nonzero(self.col_row >= 0)
-        rows = (6 * self.col_row[c_idx, s_idx])[:, None] + np.arange(6)
-        w = self.blocks[c_idx, s_idx] * lam[c_idx, None]
-        return np.bincount(rows.ravel(), weights=w.ravel(), minlength=6 * len(self.free)) \
-            - self.b
+        rows, c_idx, coef = self.entries()
+        w = coef * lam[c_idx, None]
+        return np.bincount(rows, weights=w.ravel(), minlength=6 * len(self.free)) - self.b
 
 
 def hanging_contacts(contacts: ContactSet, bodies: Bodies, active: np.ndarray) -> np.ndarray:
@@ -304,11 +327,15 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     upright_edge = np.zeros(M, bool)
     if M:
         V = contacts.vertices
-        lo = np.full((M, 3), np.inf)
-        hi = np.full((M, 3), -np.inf)
-        np.minimum.at(lo, contacts.vertex_contact, V)
-        np.maximum.at(hi, contacts.vertex_contact, V)
-        span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
+        if nverts.min() > 0:  # vertices come grouped by contact: reduce each run
+            starts = np.r_[0, np.cumsum(nverts)[:-1]]
+            span = np.maximum.reduceat(V, starts, axis=0) - np.minimum.reduceat(V, starts, axis=0)
+        else:
+            lo = np.full((M, 3), np.inf)
+            hi = np.full((M, 3), -np.inf)
+            np.minimum.at(lo, contacts.vertex_contact, V)
+            np.maximum.at(hi, contacts.vertex_contact, V)
+            span = np.where(np.isfinite(hi - lo), hi - lo, 0.0)
         upright_edge = (nverts == 2) & (span[:, 2] > np.hypot(span[:, 0], span[:, 1]))
     no_friction = horizontal & ((nverts >= 3) | upright_edge)
     # ... and so do the corner and edge side contacts of a body that nothing pushes up
@@ -331,8 +358,8 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     m = vc[col_vertex]
     fric = ~no_friction[m]
     dirs = contacts.normal[m] + (fric * mu)[:, None] * (
-        np.cos(theta[j])[:, None] * contacts.tangent_u[m]
-        + np.sin(theta[j])[:, None] * contacts.tangent_v[m])
+        np.cos(theta)[j][:, None] * contacts.tangent_u[m]
+        + np.sin(theta)[j][:, None] * contacts.tangent_v[m])
     p = contacts.vertices[col_vertex]
 
     ncol = len(col_vertex)
@@ -391,9 +418,11 @@ def _components(system: EquilibriumSystem) -> list[tuple[np.ndarray, np.ndarray]
     col_label = np.where(col_body >= 0, label[np.maximum(col_body, 0)], -1)
     order = np.argsort(col_label, kind="stable")
     bounds = np.searchsorted(col_label[order], np.arange(ncomp + 1))
+    by_label = np.argsort(label, kind="stable")  # bodies of each component, in order
+    body_bounds = np.searchsorted(label[by_label], np.arange(ncomp + 1))
     out = []
     for c in range(ncomp):
-        bodies_c = np.nonzero(label == c)[0]
+        bodies_c = by_label[body_bounds[c]:body_bounds[c + 1]]
         rows = (6 * bodies_c[:, None] + np.arange(6)).ravel()
         out.append((rows, order[bounds[c]:bounds[c + 1]]))
     return out
@@ -479,7 +508,8 @@ def _body_columns(system: EquilibriumSystem) -> tuple[np.ndarray, np.ndarray, np
 def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
               grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-              max_cluster: int | None = None, memo: dict | None = None) -> np.ndarray | None:
+              max_cluster: int | None = None, memo: dict | None = None,
+              proof: list | None = None) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -511,6 +541,12 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     columns' coefficients, their grouping into vertices and its right-hand side) to the
     NNLS answer, so the bodies that a change elsewhere leaves alone are not solved again
     (exact: equal problems have equal answers).
+
+    A body that fails on its own and misses by more than :data:`LOAD_PATH_FLOOR`
+    (squared) even with every one of its contacts free (:func:`_body_floor`) ends the
+    pass at once: every cluster it would join must balance its rows too, to ``tol``, so
+    none can, and the answer is None as after the merges.  Its floor is appended to
+    ``proof`` (a list kept by the caller): the component's E is at least that much.
     """
     from scipy.optimize import nnls
 
@@ -533,11 +569,17 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
                                starts, tol, nnls, memo)
         else:
             ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
-                                  starts, tol, nnls)
+                                  starts, tol, nnls, memo)
         if ok:
             done[unit] = True
             i += 1
             continue
+        if len(unit) == 1 and max(tol * tol, LOAD_PATH_FLOOR) < (
+                floor := _body_floor(system, unit[0], column_mask,
+                                     (cols_all, side_all, starts))):
+            if proof is not None:
+                proof.append(floor)
+            return None  # no cluster with this body can balance it
         # merge the unit with the units of the bodies that loaded it, and resume there
         c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
         sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
@@ -576,6 +618,9 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
 LOAD_PATH_MAX_CLUSTER = 12
 #: and the most merges it tries
 LOAD_PATH_MAX_MERGES = 2
+#: a body missing equilibrium by more than this (squared, scaled) with all its contacts
+#: free ends :func:`load_path` (far above the certificate's tolerance squared, 1e-20)
+LOAD_PATH_FLOOR = 1e-8
 #: body problems remembered by :func:`load_path` (the memo is cleared beyond this)
 LOAD_PATH_MEMO_MAX = 20000
 
@@ -596,7 +641,7 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
         return bool(np.linalg.norm(rhs) <= tol)
     # 1) normal forces only (the mean of a vertex's pyramid edges is its normal): passes
     #    no friction down, so lower bodies are not loaded sideways by arbitrary choices
-    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
+    n_vert, inv = _group_ids(system.col_vertex[cu])
     key = None
     if memo is not None:
         import hashlib
@@ -612,8 +657,8 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=len(vert))
-    normal_coef = np.zeros((len(vert), 6))
+    per_vert = np.bincount(inv, minlength=n_vert)
+    normal_coef = np.zeros((n_vert, 6))
     np.add.at(normal_coef, inv, coef_u)
     normal_coef /= per_vert[:, None]
     x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
@@ -632,6 +677,19 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
     return True
 
 
+def _group_ids(values: np.ndarray) -> tuple[int, np.ndarray]:
+    """``(len(u), inverse)`` of ``u, inverse = np.unique(values, return_inverse=True)``,
+    by counting changes when ``values`` is non-decreasing (a body's or a component's
+    columns come in column order, so their vertices do)."""
+    if len(values) and np.all(values[1:] >= values[:-1]):
+        inv = np.empty(len(values), np.intp)
+        inv[0] = 0
+        np.cumsum(values[1:] != values[:-1], out=inv[1:])
+        return int(inv[-1]) + 1, inv
+    u, inv = np.unique(values, return_inverse=True)
+    return len(u), inv
+
+
 def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | None:
     """``x >= 0`` with ``||A x - b|| <= tol`` found by NNLS, or None.  The residual is
     recomputed: scipy's reported one can be 0 for a solve that stopped early."""
@@ -640,8 +698,11 @@ def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | 
 
 
 def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side_all, starts,
-                     tol, nnls) -> bool:
-    """Balance the bodies of ``unit`` jointly (forces between them are unknowns too)."""
+                     tol, nnls, memo: dict | None = None) -> bool:
+    """Balance the bodies of ``unit`` jointly (forces between them are unknowns too).
+
+    ``memo`` as for :func:`_balance_body`: the cluster's matrix, vertex grouping and
+    right-hand side determine its answer."""
     local = {r: k for k, r in enumerate(unit)}
     c = np.concatenate([cols_all[starts[r]:starts[r + 1]] for r in unit])
     sd = np.concatenate([side_all[starts[r]:starts[r + 1]] for r in unit])
@@ -663,19 +724,38 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
     A = np.zeros((n_rows, len(cu)))
     np.add.at(A, ((6 * blk[un])[:, None] + np.arange(6), col_idx[:, None]), coef[un])
     # 1) normal forces only, 2) with friction (as for one body)
-    vert, inv = np.unique(system.col_vertex[cu], return_inverse=True)
-    per_vert = np.bincount(inv, minlength=len(vert))
-    An = np.zeros((n_rows, len(vert)))
+    n_vert, inv = _group_ids(system.col_vertex[cu])
+    key = None
+    if memo is not None:
+        import hashlib
+
+        h = hashlib.blake2b(b"cluster", digest_size=20)
+        for part in (A, inv, rhs, np.float64(tol)):
+            h.update(np.ascontiguousarray(part).tobytes())
+        key = h.digest()
+        hit = memo.get(key, memo)
+        if hit is not memo:
+            if hit is None:
+                return False
+            lam[cu] = hit
+            owner[cu] = pos
+            return True
+    per_vert = np.bincount(inv, minlength=n_vert)
+    An = np.zeros((n_rows, n_vert))
     np.add.at(An, (slice(None), inv), A)
     An /= per_vert
     x = _exact_nnls(An, rhs, tol, nnls)
     if x is not None:
-        lam[cu] = (x / per_vert)[inv]
+        x = (x / per_vert)[inv]
     else:
         x = _exact_nnls(A, rhs, tol, nnls)
-        if x is None:
-            return False
-        lam[cu] = x
+    if key is not None:
+        if len(memo) >= LOAD_PATH_MEMO_MAX:
+            memo.clear()
+        memo[key] = x
+    if x is None:
+        return False
+    lam[cu] = x
     owner[cu] = pos
     return True
 
@@ -694,7 +774,7 @@ def _component_digest(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndar
     bodies_c = rows[::6] // 6
     cr = system.col_row[cols]
     local = np.where(cr >= 0, np.searchsorted(bodies_c, np.maximum(cr, 0)), -1)
-    _, vgroup = np.unique(system.col_vertex[cols], return_inverse=True)
+    _, vgroup = _group_ids(system.col_vertex[cols])
     h = hashlib.blake2b(digest_size=20)
     h.update(f"{len(rows)}|{len(cols)}|{system.blocks is None}".encode())
     for part in (system.free_height[bodies_c], local, vgroup):
@@ -710,7 +790,8 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                  column_mask: np.ndarray | None = None, *,
                  components: list[tuple[np.ndarray, np.ndarray]] | None = None,
                  cache: dict | None = None, digests: dict | None = None,
-                 unstable_bound: float | None = None) -> tuple[np.ndarray, str]:
+                 unstable_bound: float | None = None, certificate: bool = False,
+                 expect_unstable: bool = False) -> tuple[np.ndarray, str]:
     """Minimise eq. 3 component by component; return (lambda over all columns, backend used).
 
     Independent components (free bodies connected through free-free contacts, see
@@ -728,6 +809,17 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     free (:func:`_body_cannot_balance`, a lower bound on E) is not solved: its forces are
     left at zero (backend "bound"), so the E computed from the result is >= the bound too
     but is not the minimum.  Only the verdict of such a result is meaningful.
+
+    ``certificate`` (only whether E is below the threshold matters, as for tilted gravity):
+    a component is first tried with the load path over half of each friction pyramid
+    (:meth:`EquilibriumSystem.half_pyramid`); when that balances every body, its forces
+    solve the whole problem to the load path's tolerance (E is about zero, which any
+    solve would find below the threshold) and are kept without the full pass.
+
+    ``expect_unstable`` (a hint, as in refining an unstable arrangement): a component
+    that would go to dense NNLS is solved by it first; when that minimum is clearly
+    above zero (:data:`LOAD_PATH_FLOOR`, optimality checked) no certificate of a zero
+    residual can succeed, so the answer is that NNLS solution, as the full order gives.
     """
     if backend not in ("auto", "nnls", "qp"):
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
@@ -753,21 +845,49 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             hit = cache.get(key)
             if hit is None and unstable_bound is not None:
                 hit = cache.get(key + b"|bound")
+            if hit is None and certificate:
+                hit = cache.get(key + b"|half")
             if hit is not None:
                 lam[cols] = hit[0]
                 used.add(hit[1])
                 continue
-        how = None
+        how, floor = None, 0.0
+        sliced = system.blocks is not None and \
+            6 * len(system.free) * len(system.col_vertex) <= DENSE_MAX_ENTRIES
+        sub_dense = None
+        if (expect_unstable and sliced and backend == "auto" and unstable_bound is None
+                and column_mask is None and len(cols) <= NNLS_MAX_COLUMNS):
+            sub_dense = _dense_block(system, rows, cols)
+            x = _solve_nnls(sub_dense, system.b[rows])
+            if _clear_miss(sub_dense, x, system.b[rows]):
+                if key is not None:
+                    cache[key] = (x, "nnls")
+                used.add("nnls")
+                lam[cols] = x
+                continue
         if backend == "auto" and system.blocks is not None:
             if grouping is None:
                 grouping = _body_columns(system)
             memo = None if cache is None else cache.setdefault("load_path_memo", {})
+            if certificate and column_mask is None:
+                x = load_path(system, system.half_pyramid(), bodies=rows[::6] // 6,
+                              grouping=grouping, memo=memo)
+                if x is not None:
+                    x = x[cols]
+                    if key is not None:
+                        cache[key + b"|half"] = (x, "load-path")
+                    used.add("load-path")
+                    lam[cols] = x
+                    continue
+            proof: list[float] = []
             x = load_path(system, column_mask, bodies=rows[::6] // 6, grouping=grouping,
-                          memo=memo)
+                          memo=memo, proof=proof)
+            floor = max(proof, default=0.0)  # E of this component is at least this
             if x is not None:
                 x, how = x[cols], "load-path"
-            elif unstable_bound is not None and _body_cannot_balance(
-                    system, rows[::6] // 6, column_mask, grouping, unstable_bound):
+            elif unstable_bound is not None and (
+                    floor >= 10 * unstable_bound or _body_cannot_balance(
+                        system, rows[::6] // 6, column_mask, grouping, unstable_bound)):
                 x, how = np.zeros(len(cols)), "bound"
                 if key is not None:
                     cache[key + b"|bound"] = (x, how)
@@ -775,13 +895,18 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 lam[cols] = x
                 continue
         if how is None:
-            if dense is None and Dr is None:
-                D = system.D
-                if D.shape[0] * D.shape[1] <= DENSE_MAX_ENTRIES:
-                    dense = D.toarray()
+            if sliced:
+                dense = True  # each component's block is sliced from ``blocks``
+            elif dense is None and Dr is None:
+                if system.D.shape[0] * system.D.shape[1] <= DENSE_MAX_ENTRIES:
+                    dense = system.D.toarray()
                 else:
-                    Dr = D.tocsr()
-            x, how = _solve_component(system.D, dense, Dr, system, rows, cols, backend)
+                    Dr = system.D.tocsr()
+            if dense is True and sub_dense is None:
+                sub_dense = _dense_block(system, rows, cols)
+            x, how = _solve_component(None if dense is True else dense, Dr, system, rows, cols,
+                                      backend, exact_possible=floor <= LOAD_PATH_FLOOR,
+                                      sub_dense=sub_dense)
         if key is not None:
             cache[key] = (x, how)
         used.add(how)
@@ -791,45 +916,79 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
     return lam, "+".join(sorted(used)) or "none"
 
 
+def _clear_miss(A: np.ndarray, x: np.ndarray, b: np.ndarray) -> bool:
+    """Whether NNLS answer ``x`` of ``min ||A x - b||`` leaves more than
+    :data:`LOAD_PATH_FLOOR` (squared) and satisfies the optimality conditions (gradient
+    >= 0, zero where ``x`` > 0, up to round-off): then no ``x >= 0`` balances to the
+    certificates' tolerance."""
+    res = A @ x - b
+    if res @ res <= LOAD_PATH_FLOOR:
+        return False
+    g = A.T @ res
+    slack = 1e-9 * (1.0 + (np.abs(A).max() if A.size else 0.0) * (np.linalg.norm(b) + 1.0))
+    return bool(g.min(initial=0.0) >= -slack and np.all(np.abs(g[x > 0]) <= slack))
+
+
 def _body_cannot_balance(system: EquilibriumSystem, bodies: np.ndarray,
                          column_mask: np.ndarray | None, grouping, bound: float) -> bool:
     """True when some body's equilibrium misses by at least ``bound`` (squared, scaled)
     even with every one of its contacts free: a proof that E >= ``bound``.
 
     Body ``g``'s rows involve only its own columns, so for any ``lambda >= 0`` its share
-    of E is at least ``min_{x >= 0} ||D_g x - b_g||^2`` (a 6-row NNLS).  The NNLS answer
-    is only trusted when it satisfies the optimality conditions (gradient >= 0, zero
-    where ``x`` > 0, up to round-off) and beats the bound ten times over.
+    of E is at least ``min_{x >= 0} ||D_g x - b_g||^2`` (a 6-row NNLS, :func:`_body_floor`),
+    trusted when it beats the bound ten times over.
     """
+    return any(_body_floor(system, r, column_mask, grouping) >= 10 * bound for r in bodies)
+
+
+def _body_floor(system: EquilibriumSystem, r: int, column_mask: np.ndarray | None,
+                grouping) -> float:
+    """``min_{x >= 0} ||D_r x - b_r||^2`` of free body ``r`` with every one of its contacts
+    free (a lower bound on its share of E under any forces), or 0 when the NNLS answer
+    fails the optimality conditions (gradient >= 0, zero where ``x`` > 0, up to
+    round-off) and so proves nothing."""
     from scipy.optimize import nnls
 
     cols_all, side_all, starts = grouping
-    for r in bodies:
-        c = cols_all[starts[r]:starts[r + 1]]
-        sd = side_all[starts[r]:starts[r + 1]]
-        if column_mask is not None:
-            keep = column_mask[c]
-            c, sd = c[keep], sd[keep]
-        b = system.b[6 * r:6 * r + 6]
-        if len(c) == 0:
-            if b @ b >= 10 * bound:
-                return True
-            continue
-        A = system.blocks[c, sd].T  # (6, k)
-        x, _ = nnls(A, b, maxiter=200 * max(len(c), 10))
-        res = A @ x - b
-        g = A.T @ res
-        slack = 1e-9 * (1.0 + np.abs(A).max() * (np.linalg.norm(b) + 1.0))
-        optimal = g.min() >= -slack and np.all(np.abs(g[x > 0]) <= slack)
-        if optimal and res @ res >= 10 * bound:
-            return True
-    return False
+    c = cols_all[starts[r]:starts[r + 1]]
+    sd = side_all[starts[r]:starts[r + 1]]
+    if column_mask is not None:
+        keep = column_mask[c]
+        c, sd = c[keep], sd[keep]
+    b = system.b[6 * r:6 * r + 6]
+    if len(c) == 0:
+        return float(b @ b)
+    A = system.blocks[c, sd].T  # (6, k)
+    x, _ = nnls(A, b, maxiter=200 * max(len(c), 10))
+    res = A @ x - b
+    g = A.T @ res
+    slack = 1e-9 * (1.0 + np.abs(A).max() * (np.linalg.norm(b) + 1.0))
+    optimal = g.min() >= -slack and np.all(np.abs(g[x > 0]) <= slack)
+    return float(res @ res) if optimal else 0.0
 
 
-def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndarray, str]:
-    """Solve one component by the frictionless certificate, dense NNLS or the QP."""
-    if dense is not None:
-        sub_dense = dense[np.ix_(rows, cols)]
+def _dense_block(system: EquilibriumSystem, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``D[rows][:, cols]`` of one component as a dense array, straight from ``blocks``
+    (the same entries as the assembled matrix: each column acts on two different bodies,
+    so no entry is a sum)."""
+    bodies_c = rows[::6] // 6
+    cr = system.col_row[cols]
+    out = np.zeros((len(rows), len(cols)))
+    for side in (0, 1):
+        use = np.nonzero(cr[:, side] >= 0)[0]
+        local = np.searchsorted(bodies_c, cr[use, side])
+        out[(6 * local)[:, None] + np.arange(6), use[:, None]] = system.blocks[cols[use], side]
+    return out
+
+
+def _solve_component(dense, Dr, system, rows, cols, backend, exact_possible: bool = True,
+                     sub_dense: np.ndarray | None = None) -> tuple[np.ndarray, str]:
+    """Solve one component by the frictionless certificate, dense NNLS or the QP
+    (``exact_possible`` False: a body is known to miss equilibrium, so the certificate,
+    which needs a zero residual, is skipped).  The component's matrix comes as
+    ``sub_dense``, or is sliced from the whole ``dense`` one or the sparse ``Dr``."""
+    if sub_dense is not None or dense is not None:
+        sub_dense = dense[np.ix_(rows, cols)] if sub_dense is None else sub_dense
         sub = sp.csc_matrix(sub_dense) if len(cols) > NNLS_MAX_COLUMNS else None
     else:
         sub = Dr[rows][:, cols].tocsc()
@@ -837,7 +996,7 @@ def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndar
     rhs = system.b[rows]
     choice = backend
     if choice == "auto" and sub_dense is not None:
-        x = _normal_only(sub_dense, rhs, system.col_vertex[cols])
+        x = _normal_only(sub_dense, rhs, system.col_vertex[cols]) if exact_possible else None
         if x is not None:
             return x, "normal"
         choice = "nnls" if len(cols) <= NNLS_MAX_COLUMNS else "qp"
@@ -854,8 +1013,8 @@ def _solve_component(D, dense, Dr, system, rows, cols, backend) -> tuple[np.ndar
 def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None,
                     backend: str = "auto", side_friction: bool = False,
                     contacts: ContactSet | None = None, tilt_deg: float = 0.0,
-                    solve_cache: dict | None = None, verdict_only: bool = False
-                    ) -> StabilityResult:
+                    solve_cache: dict | None = None, verdict_only: bool = False,
+                    expect_unstable: bool = False) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -887,6 +1046,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         proves unstable (its miss with every contact free already exceeds the threshold,
         ``solve_energy(unstable_bound=...)``) is not solved.  ``stable`` is exact; when it
         is False, ``energy`` and the per-body values are then not the minimum.
+    expect_unstable : bool
+        A hint that the arrangement (refinement's variants) mostly misses equilibrium:
+        upright components are solved by NNLS before the certificates, which are skipped
+        when it leaves a clear residual (``solve_energy``).  Results are identical.
 
     Returns
     -------
@@ -911,7 +1074,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         {id(cols): _component_digest(system, rows, cols) for rows, cols in comps}
     bound = threshold if verdict_only else None
     lam, used = solve_energy(system, backend, components=comps, cache=solve_cache,
-                             digests=digests, unstable_bound=bound)
+                             digests=digests, unstable_bound=bound,
+                             expect_unstable=expect_unstable)
     result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg
@@ -928,7 +1092,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
             tthr = threshold * ROBUST_THRESHOLD_REL
             lam_t, used_t = solve_energy(tilted, backend, components=comps, cache=solve_cache,
                                          digests=digests,
-                                         unstable_bound=None if bound is None else tthr)
+                                         unstable_bound=None if bound is None else tthr,
+                                         certificate=True)
             if _energy(bodies, tilted, lam_t) < tthr:
                 continue  # (the full result is only built when it is the answer)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, tthr, used_t, mu)
@@ -958,12 +1123,10 @@ def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> Stabilit
     rforce[system.free] = np.linalg.norm(phys[:, :3], axis=1)
     rtorque[system.free] = np.linalg.norm(phys[:, 3:], axis=1)
     energy = float(body_energy.sum())
-    out = []
-    for k, c in enumerate(arr.cuboids):
-        g = bodies.of_node[k]
-        out.append(BodyResidual(c.id, bool(body_energy[g] < threshold), float(rforce[g]),
-                                float(rtorque[g]), float(body_energy[g]),
-                                bool(bodies.anchored[g]), int(g)))
+    e, rf, rt = body_energy.tolist(), rforce.tolist(), rtorque.tolist()
+    anchored = bodies.anchored.tolist()
+    out = [BodyResidual(c.id, e[g] < threshold, rf[g], rt[g], e[g], anchored[g], g)
+           for c, g in zip(arr.cuboids, bodies.of_node[:len(arr.cuboids)].tolist())]
     status = "interpenetration" if contacts.penetrations else "ok"
     stable = energy < threshold and not contacts.penetrations
     load = np.bincount(system.col_contact, weights=lam, minlength=contacts.count) \
@@ -997,7 +1160,7 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
     """The same system in newtons (rows multiplied back by their scale)."""
     S = sp.diags(system.row_scale)
     return replace(system, _D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
-                   row_scale=np.ones_like(system.row_scale), blocks=None)
+                   row_scale=np.ones_like(system.row_scale), blocks=None, _shared={})
 
 
 __all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",

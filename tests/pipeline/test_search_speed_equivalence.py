@@ -207,15 +207,14 @@ def test_verdict_only_gives_the_same_verdict_and_skips_solves_it_can_prove():
     import pipeline.stability as stability
 
     rng = np.random.default_rng(13)
-    proved = 0
-    calls = []
-    real = stability._body_cannot_balance
+    floors = []
+    real = stability._body_floor
 
     def spy(*args):
-        calls.append(real(*args))
-        return calls[-1]
+        floors.append(real(*args))
+        return floors[-1]
 
-    stability._body_cannot_balance = spy
+    stability._body_floor = spy
     try:
         for _ in range(30):
             arr = _random_scene(rng)
@@ -227,6 +226,5 @@ def test_verdict_only_gives_the_same_verdict_and_skips_solves_it_can_prove():
             else:
                 assert fast.energy >= fast.threshold
     finally:
-        stability._body_cannot_balance = real
-    proved = sum(calls)
-    assert proved > 0  # the one-body bound was used
+        stability._body_floor = real
+    assert any(f >= 10 * 1e-5 for f in floors)  # the one-body bound was used
