@@ -1045,7 +1045,7 @@ def _growths(arr: Arrangement, ids: list[str], views: list[DepthView],
                     cubs = list(arr.cuboids)
                     cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
                     out.append((x.volume(arr.sizes), len(out), c.id,
-                                arr.with_(cuboids=tuple(cubs))))
+                                arr.with_(cuboids=tuple(cubs)).inherit_views(arr)))
     out.sort(key=lambda t: t[:2])
     from .contacts import update_contacts_of_one
 

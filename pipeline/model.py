@@ -229,6 +229,33 @@ class Arrangement:
         out.setflags(write=False)
         return out
 
+    def inherit_views(self, other: Arrangement) -> Arrangement:
+        """Fill this arrangement's stacked views (centres, rotations, sizes, corners) from
+        those ``other`` has computed, recomputing only the rows whose cuboid is not the
+        same object: an arrangement derived from another by changing a few cuboids skips
+        the stacking.  Returns ``self``."""
+        K = len(self.cuboids)
+        if len(other.cuboids) != K or not K:
+            return self
+        diff = [k for k, (a, b) in enumerate(zip(self.cuboids, other.cuboids)) if a is not b]
+        mine, theirs = self.__dict__, other.__dict__
+        for name, attr in (("centers", "center"), ("rotations", "rotation"), ("sizes", "size")):
+            if name in theirs and name not in mine:
+                out = theirs[name].copy()
+                for k in diff:
+                    out[k] = getattr(self.cuboids[k], attr)
+                out.setflags(write=False)
+                mine[name] = out
+        if "corners" in theirs and "corners" not in mine and \
+                all(n in mine for n in ("centers", "rotations", "sizes")):
+            out = theirs["corners"].copy()
+            if diff:
+                out[diff] = box_corners(self.centers[diff], self.rotations[diff],
+                                        self.sizes[diff])
+            out.setflags(write=False)
+            mine["corners"] = out
+        return self
+
     @property
     def support_ids(self) -> tuple[str, ...]:
         return tuple(s.id for s in self.supports)

@@ -45,7 +45,7 @@ def _with_params(arr: Arrangement, k: int, center: np.ndarray, size: np.ndarray)
     cubs = list(arr.cuboids)
     cubs[k] = Cuboid(c.id, center, c.rotation, np.maximum(size, 1e-4), c.density, c.object,
                      c.observed, c.extra)
-    return arr.with_(cuboids=tuple(cubs))
+    return arr.with_(cuboids=tuple(cubs)).inherit_views(arr)
 
 
 #: the per-refinement cache of component solutions is cleared beyond this many entries

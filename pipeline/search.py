@@ -199,6 +199,8 @@ class _Group:
             n = len({x[0] for x in keyset ^ ks})
             if fewest is None or n < fewest:
                 base, fewest = (g, c), n
+        if base is not None:
+            geom.inherit_views(base[0])  # most boxes are the same objects as the base's
         cs = find_contacts(geom) if base is None else update_contacts(geom, *base)
         self.stats.contact_evaluations += 1
         self.geom_cache[key] = (geom, cs)

@@ -303,3 +303,19 @@ def test_contacts_of_one_box_variants_in_one_batch_equal_one_by_one():
                 assert got.penetrations == ref.penetrations
                 checked += 1
     assert checked > 100
+
+
+def test_inherited_views_equal_fresh_ones():
+    from eval.benchmarks.search import rooms
+
+    arr = rooms(30, 4)
+    _ = arr.corners  # computed on the base
+    cubs = list(arr.cuboids)
+    for k in (0, 7, 19):
+        c = cubs[k]
+        cubs[k] = c.with_(center=c.center + 0.01, size=c.size * 1.1)
+    derived = arr.with_(cuboids=tuple(cubs)).inherit_views(arr)
+    fresh = arr.with_(cuboids=tuple(cubs))
+    for name in ("centers", "rotations", "sizes", "corners"):
+        np.testing.assert_array_equal(getattr(derived, name), getattr(fresh, name))
+        assert not getattr(derived, name).flags.writeable
