@@ -334,3 +334,13 @@ def test_summary_only_checks_give_the_full_stable_energy_and_status():
             assert (short.stable, short.energy, short.status, short.backend) == \
                 (full.stable, full.energy, full.status, full.backend)
             assert short.bodies == () and short.contact_load is None
+
+
+def test_same_object_pair_edges_are_those_of_all_pairs():
+    from eval.benchmarks.search import occluded, rooms
+    from pipeline.extend import MAX_EXTENSION_REL, pair_edges
+
+    arr = occluded(rooms(56, seed=1001), np.random.default_rng(1))
+    max_ext = MAX_EXTENSION_REL * arr.scale_length()
+    every = [e for e in pair_edges(arr, max_ext) if e.same_object]
+    assert every and pair_edges(arr, max_ext, same_object=True) == every
