@@ -173,6 +173,32 @@ def fixed_node_pairs(arr: Arrangement, contacts: ContactSet) -> list[tuple[int, 
 def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     """Union-find of cuboids over fixed pairs; mass, COM and size of each body."""
     K, S = len(arr.cuboids), len(arr.supports)
+    key = (K, S, tuple(fixed))
+    grouping = _BODY_GROUPING.get(key)
+    if grouping is None:
+        grouping = _group_bodies(K, S, fixed)
+        if len(_BODY_GROUPING) >= 256:
+            _BODY_GROUPING.clear()
+        _BODY_GROUPING[key] = grouping
+    of_node, anchored, G = grouping
+    masses = arr.masses
+    mass = np.bincount(of_node[:K], weights=masses, minlength=G)
+    com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
+                    for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
+    corners = arr.corners
+    dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
+    size = np.zeros(G)
+    np.maximum.at(size, of_node[:K], dist)
+    return Bodies(of_node, anchored.copy(), mass, com, size)
+
+
+#: body grouping of recent (cuboid count, support count, fixed pairs): the same input
+#: (a refinement's variants, a search's nodes) gives the same union-find
+_BODY_GROUPING: dict[tuple, tuple[np.ndarray, np.ndarray, int]] = {}
+
+
+def _group_bodies(K: int, S: int, fixed) -> tuple[np.ndarray, np.ndarray, int]:
+    """(body of each node, anchored flag of each body, body count) of the union-find."""
     parent = list(range(K + S))
 
     def find(x: int) -> int:
@@ -197,15 +223,8 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     anchored = np.zeros(G, bool)
     if S:
         anchored[of_node[K:]] = True
-    masses = arr.masses
-    mass = np.bincount(of_node[:K], weights=masses, minlength=G)
-    com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
-                    for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
-    corners = arr.corners
-    dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
-    size = np.zeros(G)
-    np.maximum.at(size, of_node[:K], dist)
-    return Bodies(of_node, anchored, mass, com, size)
+    of_node.setflags(write=False)
+    return of_node, anchored, G
 
 
 # ------------------------------------------------------------------------- system
