@@ -103,10 +103,13 @@ class ContactSet:
         return self.vertices[self.vertex_contact == m]
 
     def lookup(self) -> dict[tuple[str, str], int]:
-        """Unordered name pair (sorted) -> contact index."""
-        out = {}
-        for m, (x, y) in enumerate(self.pairs):
-            out[(x, y) if x <= y else (y, x)] = m
+        """Unordered name pair (sorted) -> contact index (built once; do not modify)."""
+        out = self.__dict__.get("_lookup")
+        if out is None:
+            out = {}
+            for m, (x, y) in enumerate(self.pairs):
+                out[(x, y) if x <= y else (y, x)] = m
+            self.__dict__["_lookup"] = out
         return out
 
 

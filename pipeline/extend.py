@@ -131,14 +131,20 @@ def _caps(R: np.ndarray, S: np.ndarray, axis: np.ndarray, max_ext: float) -> np.
                     max_ext)
 
 
-def pair_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
-    """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs."""
+def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False) -> list[Edge]:
+    """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs
+    (``same_object``: only the pairs of parts of one object, each edge as without)."""
     K = len(arr.cuboids)
     if K < 2:
         return []
     C, R, S = arr.centers, arr.rotations, arr.sizes
     H = S / 2.0
     i, j = candidate_pairs(C, R, S, np.full(K, max_ext))
+    if same_object and len(i):
+        objects = [c.object for c in arr.cuboids]
+        keep = np.array([objects[a] is not None and objects[a] == objects[b]
+                         for a, b in zip(i.tolist(), j.tolist())], bool)
+        i, j = i[keep], j[keep]
     if not len(i):
         return []
     tol = pair_tolerance(S[i], S[j])

@@ -315,7 +315,7 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     for _ in range(max_rounds):
         K = len(arr.cuboids)
         trials = []
-        for e in pair_edges(arr, max_ext):
+        for e in pair_edges(arr, max_ext, same_object=True):
             if not e.same_object or e.touching or isinstance(e.b, str):
                 continue
             trials += [(o.volume, e.a, e.b, o) for o in e.options

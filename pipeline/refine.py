@@ -80,14 +80,16 @@ class _Evaluator:
         """Contacts of variants of the base that differ in cuboid ``k`` (one batch)."""
         return update_contacts_of_one(arrs, self.base, self.base_contacts, k)
 
-    def __call__(self, arr: Arrangement, cs: ContactSet | None = None
+    def __call__(self, arr: Arrangement, cs: ContactSet | None = None, summary: bool = False
                  ) -> tuple[float, object, ContactSet]:
+        """(E, stability result, contacts) of ``arr``; ``summary``: only E is needed."""
         cs = self.contacts(arr) if cs is None else cs
         if len(self.cache) > SOLVE_CACHE_MAX:
             self.cache.clear()
         try:
             res = check_stability(arr, mu=self.mu, tilt_deg=self.tilt_deg, contacts=cs,
-                                  solve_cache=self.cache, expect_unstable=True)
+                                  solve_cache=self.cache, expect_unstable=True,
+                                  summary_only=summary)
         except InputError:  # a fixed pair pulled apart
             return float("inf"), None, cs
         if res.status != "ok":
@@ -200,7 +202,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
                     trials.append(_with_params(arr, k, x[:3], x[3:]))
             for (p, sgn), trial, cs in zip(moves, trials, energy.variants(trials, k),
                                            strict=True):
-                e, _, _ = energy(trial, cs)
+                e, _, _ = energy(trial, cs, summary=True)
                 evals += 1
                 grad[p] += sgn * (e if np.isfinite(e) else E) / (2 * h_fd)
             if best is None or np.linalg.norm(grad) > np.linalg.norm(best[1]):

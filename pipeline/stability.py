@@ -178,6 +178,32 @@ def fixed_node_pairs(arr: Arrangement, contacts: ContactSet) -> list[tuple[int, 
 def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     """Union-find of cuboids over fixed pairs; mass, COM and size of each body."""
     K, S = len(arr.cuboids), len(arr.supports)
+    key = (K, S, tuple(fixed))
+    grouping = _BODY_GROUPING.get(key)
+    if grouping is None:
+        grouping = _group_bodies(K, S, fixed)
+        if len(_BODY_GROUPING) >= 256:
+            _BODY_GROUPING.clear()
+        _BODY_GROUPING[key] = grouping
+    of_node, anchored, G = grouping
+    masses = arr.masses
+    mass = np.bincount(of_node[:K], weights=masses, minlength=G)
+    com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
+                    for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
+    corners = arr.corners
+    dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
+    size = np.zeros(G)
+    np.maximum.at(size, of_node[:K], dist)
+    return Bodies(of_node, anchored.copy(), mass, com, size)
+
+
+#: body grouping of recent (cuboid count, support count, fixed pairs): the same input
+#: (a refinement's variants, a search's nodes) gives the same union-find
+_BODY_GROUPING: dict[tuple, tuple[np.ndarray, np.ndarray, int]] = {}
+
+
+def _group_bodies(K: int, S: int, fixed) -> tuple[np.ndarray, np.ndarray, int]:
+    """(body of each node, anchored flag of each body, body count) of the union-find."""
     parent = list(range(K + S))
 
     def find(x: int) -> int:
@@ -202,18 +228,16 @@ def build_bodies(arr: Arrangement, fixed: list[tuple[int, int]]) -> Bodies:
     anchored = np.zeros(G, bool)
     if S:
         anchored[of_node[K:]] = True
-    masses = arr.masses
-    mass = np.bincount(of_node[:K], weights=masses, minlength=G)
-    com = np.stack([np.bincount(of_node[:K], weights=masses * arr.centers[:, d], minlength=G)
-                    for d in range(3)], axis=1) / np.maximum(mass, 1e-300)[:, None]
-    corners = arr.corners
-    dist = np.linalg.norm(corners - com[of_node[:K]][:, None, :], axis=2).max(axis=1) if K else []
-    size = np.zeros(G)
-    np.maximum.at(size, of_node[:K], dist)
-    return Bodies(of_node, anchored, mass, com, size)
+    of_node.setflags(write=False)
+    return of_node, anchored, G
 
 
 # ------------------------------------------------------------------------- system
+#: cosines and sines of the friction pyramid's edge angles 2 pi j / E
+_PYRAMID_COS = np.cos(2 * np.pi * np.arange(FRICTION_PYRAMID_EDGES) / FRICTION_PYRAMID_EDGES)
+_PYRAMID_SIN = np.sin(2 * np.pi * np.arange(FRICTION_PYRAMID_EDGES) / FRICTION_PYRAMID_EDGES)
+
+
 @dataclass(frozen=True)
 class EquilibriumSystem:
     """The scale-free system ``D lambda = b`` with bookkeeping to read it back.
@@ -347,7 +371,6 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
 
     # columns: for every vertex of an active contact, E pyramid edges (or 1 normal column)
     E = FRICTION_PYRAMID_EDGES
-    theta = 2 * np.pi * np.arange(E) / E
     vc = contacts.vertex_contact
     vmask = active[vc] if len(vc) else np.zeros(0, bool)
     verts = np.nonzero(vmask)[0]
@@ -358,31 +381,32 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     m = vc[col_vertex]
     fric = ~no_friction[m]
     dirs = contacts.normal[m] + (fric * mu)[:, None] * (
-        np.cos(theta)[j][:, None] * contacts.tangent_u[m]
-        + np.sin(theta)[j][:, None] * contacts.tangent_v[m])
+        _PYRAMID_COS[j][:, None] * contacts.tangent_u[m]
+        + _PYRAMID_SIN[j][:, None] * contacts.tangent_v[m])
     p = contacts.vertices[col_vertex]
 
     ncol = len(col_vertex)
     W = bodies.mass * GRAVITY
     # blocks[c, side] = the 6 scaled equilibrium coefficients of column c on body side
+    # (both sides at once: side 0 is body a, pushed along +dir; side 1 is b, along -dir)
     blocks = np.zeros((ncol, 2, 6))
     col_row = -np.ones((ncol, 2), int)
-    for side, sign in ((0, 1.0), (1, -1.0)):
-        g = contact_bodies[m, side]
-        use = (g >= 0)
-        use[use] = ~bodies.anchored[g[use]]
-        if not np.any(use):
-            continue
-        gu, du, pu = g[use], sign * dirs[use], p[use]
-        torque = cross(pu - bodies.com[gu], du)
-        blocks[use, side, :3] = du / W[gu][:, None]
-        blocks[use, side, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
-        col_row[use, side] = row_of_body[gu]
+    g2 = contact_bodies[m]
+    use = g2 >= 0
+    use[use] = ~bodies.anchored[g2[use]]
+    c_idx, s_idx = np.nonzero(use)
+    if len(c_idx):
+        gu = g2[c_idx, s_idx]
+        du = np.where((s_idx == 0)[:, None], 1.0, -1.0) * dirs[c_idx]
+        torque = cross(p[c_idx] - bodies.com[gu], du)
+        blocks[c_idx, s_idx, :3] = du / W[gu][:, None]
+        blocks[c_idx, s_idx, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
+        col_row[c_idx, s_idx] = row_of_body[gu]
     nrow = 6 * len(free)
     b = np.zeros(nrow)
     b[6 * np.arange(len(free)) + 2] = 1.0  # contacts must lift each body's weight
-    row_scale = np.repeat(W[free], 6) * np.tile([1, 1, 1, 0, 0, 0], len(free)) + \
-        np.repeat(W[free] * bodies.size[free], 6) * np.tile([0, 0, 0, 1, 1, 1], len(free))
+    Wf, WLf = W[free], W[free] * bodies.size[free]  # force rows in weights, torque rows
+    row_scale = np.stack([Wf, Wf, Wf, WLf, WLf, WLf], axis=1).ravel()
     return EquilibriumSystem(None, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
                              col_row, bodies.com[free, 2])
 
@@ -1014,7 +1038,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
                     backend: str = "auto", side_friction: bool = False,
                     contacts: ContactSet | None = None, tilt_deg: float = 0.0,
                     solve_cache: dict | None = None, verdict_only: bool = False,
-                    expect_unstable: bool = False) -> StabilityResult:
+                    expect_unstable: bool = False, summary_only: bool = False
+                    ) -> StabilityResult:
     """Static equilibrium of ``arr`` under gravity (see the module docstring).
 
     Parameters
@@ -1050,6 +1075,10 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         A hint that the arrangement (refinement's variants) mostly misses equilibrium:
         upright components are solved by NNLS before the certificates, which are skipped
         when it leaves a clear residual (``solve_energy``).  Results are identical.
+    summary_only : bool
+        Only ``stable``, ``energy`` and ``status`` are needed (refinement's finite
+        differences): ``bodies`` is left empty and ``contact_load`` None; the rest is as
+        without.
 
     Returns
     -------
@@ -1076,7 +1105,14 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
     lam, used = solve_energy(system, backend, components=comps, cache=solve_cache,
                              digests=digests, unstable_bound=bound,
                              expect_unstable=expect_unstable)
-    result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
+    if summary_only:  # E summed as _result sums it, without the per-body records
+        energy = _energy(bodies, system, lam)
+        result = StabilityResult(energy < threshold and not contacts.penetrations, energy,
+                                 threshold, "interpenetration" if contacts.penetrations
+                                 else "ok", (), used, mu, contacts.count,
+                                 contacts.penetrations, None)
+    else:
+        result = _result(arr, contacts, bodies, system, lam, threshold, used, mu)
     if tilt_deg > 0 and result.stable:
         # robustness: the arrangement must also stand when gravity leans by tilt_deg
         # towards +-x and +-y (rules out knife-edge solutions such as a table on two
@@ -1098,6 +1134,8 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
                 continue  # (the full result is only built when it is the answer)
             res_t = _result(arr, contacts, bodies, tilted, lam_t, tthr, used_t, mu)
             if not res_t.stable:
+                if summary_only:
+                    res_t = replace(res_t, bodies=(), contact_load=None)
                 return replace(res_t, status="not robust")
     return result
 

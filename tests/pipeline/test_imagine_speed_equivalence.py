@@ -23,7 +23,7 @@ def _plain(monkeypatch) -> None:
     real = stability.check_stability
 
     def plain(arr, mu=0.7, threshold=None, backend="auto", side_friction=False, contacts=None,
-              tilt_deg=0.0, solve_cache=None, verdict_only=False, expect_unstable=False):
+              tilt_deg=0.0, **_hints):
         return real(arr, mu=mu, threshold=threshold, backend=backend,
                     side_friction=side_friction, tilt_deg=tilt_deg)
 
@@ -319,3 +319,28 @@ def test_inherited_views_equal_fresh_ones():
     for name in ("centers", "rotations", "sizes", "corners"):
         np.testing.assert_array_equal(getattr(derived, name), getattr(fresh, name))
         assert not getattr(derived, name).flags.writeable
+
+
+def test_summary_only_checks_give_the_full_stable_energy_and_status():
+    from tests.conftest import overhang_scene
+    from tests.pipeline.test_search_speed_equivalence import _random_scene
+
+    rng = np.random.default_rng(23)
+    scenes = [_random_scene(rng) for _ in range(15)] + [overhang_scene(0.55), _decks()]
+    for arr in scenes:
+        for tilt in (0.0, 2.0):
+            full = check_stability(arr, tilt_deg=tilt)
+            short = check_stability(arr, tilt_deg=tilt, summary_only=True)
+            assert (short.stable, short.energy, short.status, short.backend) == \
+                (full.stable, full.energy, full.status, full.backend)
+            assert short.bodies == () and short.contact_load is None
+
+
+def test_same_object_pair_edges_are_those_of_all_pairs():
+    from eval.benchmarks.search import occluded, rooms
+    from pipeline.extend import MAX_EXTENSION_REL, pair_edges
+
+    arr = occluded(rooms(56, seed=1001), np.random.default_rng(1))
+    max_ext = MAX_EXTENSION_REL * arr.scale_length()
+    every = [e for e in pair_edges(arr, max_ext) if e.same_object]
+    assert every and pair_edges(arr, max_ext, same_object=True) == every
