@@ -502,7 +502,7 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
               grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
               max_cluster: int | None = None, memo: dict | None = None,
-              proof: list | None = None) -> np.ndarray | None:
+              proof: list | None = None, normal_first: bool = True) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -540,6 +540,8 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     pass at once: every cluster it would join must balance its rows too, to ``tol``, so
     none can, and the answer is None as after the merges.  Its floor is appended to
     ``proof`` (a list kept by the caller): the component's E is at least that much.
+    ``normal_first`` False: each unit is balanced with friction at once (a certificate
+    for tilted gravity, where normal forces alone rarely balance a body).
     """
     from scipy.optimize import nnls
 
@@ -559,10 +561,10 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
         unit = units[i]
         if len(unit) == 1:
             ok = _balance_body(system, unit[0], lam, owner, i, done, usable, cols_all, side_all,
-                               starts, tol, nnls, memo)
+                               starts, tol, nnls, memo, normal_first)
         else:
             ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
-                                  starts, tol, nnls, memo)
+                                  starts, tol, nnls, memo, normal_first)
         if ok:
             done[unit] = True
             i += 1
@@ -619,7 +621,7 @@ LOAD_PATH_MEMO_MAX = 20000
 
 
 def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, starts, tol,
-                  nnls, memo: dict | None = None) -> bool:
+                  nnls, memo: dict | None = None, normal_first: bool = True) -> bool:
     """Balance free body ``r`` with its contacts to bodies not yet done (see load_path)."""
     c = cols_all[starts[r]:starts[r + 1]]
     sd = side_all[starts[r]:starts[r + 1]]
@@ -639,7 +641,7 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
     if memo is not None:
         import hashlib
 
-        h = hashlib.blake2b(digest_size=20)
+        h = hashlib.blake2b(b"" if normal_first else b"friction", digest_size=20)
         for part in (coef_u, inv, rhs, np.float64(tol)):
             h.update(np.ascontiguousarray(part).tobytes())
         key = h.digest()
@@ -650,14 +652,16 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=n_vert)
-    normal_coef = np.zeros((n_vert, 6))
-    np.add.at(normal_coef, inv, coef_u)
-    normal_coef /= per_vert[:, None]
-    x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
-    if x is not None:
-        x = (x / per_vert)[inv]
-    else:  # 2) with friction
+    x = None
+    if normal_first:
+        per_vert = np.bincount(inv, minlength=n_vert)
+        normal_coef = np.zeros((n_vert, 6))
+        np.add.at(normal_coef, inv, coef_u)
+        normal_coef /= per_vert[:, None]
+        x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
+        if x is not None:
+            x = (x / per_vert)[inv]
+    if x is None:  # 2) with friction
         x = _exact_nnls(coef_u.T, rhs, tol, nnls)
     if key is not None:
         if len(memo) >= LOAD_PATH_MEMO_MAX:
@@ -691,7 +695,7 @@ def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | 
 
 
 def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side_all, starts,
-                     tol, nnls, memo: dict | None = None) -> bool:
+                     tol, nnls, memo: dict | None = None, normal_first: bool = True) -> bool:
     """Balance the bodies of ``unit`` jointly (forces between them are unknowns too).
 
     ``memo`` as for :func:`_balance_body`: the cluster's matrix, vertex grouping and
@@ -722,7 +726,8 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
     if memo is not None:
         import hashlib
 
-        h = hashlib.blake2b(b"cluster", digest_size=20)
+        h = hashlib.blake2b(b"cluster" if normal_first else b"cluster-friction",
+                            digest_size=20)
         for part in (A, inv, rhs, np.float64(tol)):
             h.update(np.ascontiguousarray(part).tobytes())
         key = h.digest()
@@ -733,14 +738,16 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=n_vert)
-    An = np.zeros((n_rows, n_vert))
-    np.add.at(An, (slice(None), inv), A)
-    An /= per_vert
-    x = _exact_nnls(An, rhs, tol, nnls)
-    if x is not None:
-        x = (x / per_vert)[inv]
-    else:
+    x = None
+    if normal_first:
+        per_vert = np.bincount(inv, minlength=n_vert)
+        An = np.zeros((n_rows, n_vert))
+        np.add.at(An, (slice(None), inv), A)
+        An /= per_vert
+        x = _exact_nnls(An, rhs, tol, nnls)
+        if x is not None:
+            x = (x / per_vert)[inv]
+    if x is None:
         x = _exact_nnls(A, rhs, tol, nnls)
     if key is not None:
         if len(memo) >= LOAD_PATH_MEMO_MAX:
@@ -864,7 +871,7 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
             memo = None if cache is None else cache.setdefault("load_path_memo", {})
             if certificate and column_mask is None:
                 x = load_path(system, system.half_pyramid(), bodies=rows[::6] // 6,
-                              grouping=grouping, memo=memo)
+                              grouping=grouping, memo=memo, normal_first=False)
                 if x is not None:
                     x = x[cols]
                     if key is not None:
