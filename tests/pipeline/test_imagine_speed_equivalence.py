@@ -364,3 +364,26 @@ def find_contacts_of(arr):
     from pipeline.contacts import find_contacts
 
     return find_contacts(arr)
+
+
+def test_systems_from_a_remembered_topology_equal_fresh_ones():
+    from pipeline.contacts import find_contacts
+    from tests.pipeline.test_search_speed_equivalence import _room_variants
+
+    base, variants = _room_variants(2, 3)
+    for arr in (base, *variants):
+        arr = arr.with_(contacts=())
+        cs = find_contacts(arr)
+        bodies = stability.build_bodies(arr, [])
+        stability._TOPOLOGY.clear()
+        fresh = stability.build_system(arr, cs, bodies, 0.7)
+        again = stability.build_system(arr, cs, bodies, 0.7)  # topology remembered
+        assert stability._TOPOLOGY
+        for f in ("b", "free", "row_scale", "col_vertex", "col_contact", "col_dir",
+                  "contact_bodies", "blocks", "col_row", "free_height"):
+            np.testing.assert_array_equal(getattr(fresh, f), getattr(again, f))
+        fresh_comps = stability._components(fresh)
+        assert len(again.components()) == len(fresh_comps)
+        for (r1, c1), (r2, c2) in zip(again.components(), fresh_comps, strict=True):
+            np.testing.assert_array_equal(r1, r2)
+            np.testing.assert_array_equal(c1, c2)
