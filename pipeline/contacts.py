@@ -428,24 +428,16 @@ def update_contacts(arr: Arrangement, base: Arrangement, base_contacts: ContactS
     return _merge_carried(names, K, len(arr.supports), changed, parts, pens, base_contacts)
 
 
-def _merge_carried(names, K, n_supports, changed, parts, pens, base_contacts) -> ContactSet:
+def _merge_carried(names, K, n_supports, changed, parts, pens, base_contacts,
+                   carried=None) -> ContactSet:
     """The contacts recomputed for the ``changed`` cuboids (``parts``, ``pens``) merged
-    with those of ``base_contacts`` between unchanged nodes, in canonical order."""
-    # carried-over contacts: neither node changed
-    bc = base_contacts
-    node_changed = np.r_[changed, np.zeros(n_supports, bool)]
-    keep = ~(node_changed[bc.a] | node_changed[bc.b]) if bc.count else np.zeros(0, bool)
-    kept = np.nonzero(keep)[0]
-    if len(kept):
-        vsel = keep[bc.vertex_contact]
-        remap = -np.ones(bc.count, int)
-        remap[kept] = np.arange(len(kept))
-        parts.append((bc.a[kept], bc.b[kept], bc.normal[kept], bc.vertices[vsel],
-                      remap[bc.vertex_contact[vsel]], bc.tangent_u[kept], bc.tangent_v[kept],
-                      bc.gap[kept], np.ones(len(kept), bool)))
-    index = {n: k for k, n in enumerate(names)}
-    pens += [p for p in bc.penetrations
-             if not (node_changed[index[p[0]]] or node_changed[index[p[1]]])]
+    with those of ``base_contacts`` between unchanged nodes, in canonical order
+    (``carried``: :func:`_carried` of the same inputs, when several merges share it)."""
+    part, kept_pens, index = _carried(names, n_supports, changed, base_contacts) \
+        if carried is None else carried
+    if part is not None:
+        parts.append(part)
+    pens = pens + kept_pens
     out = _assemble(names, K, parts, ())
     # canonical order: cuboid pairs first by (a, b), then each support in order by a
     group = np.where(out.b < K, -1, out.b)
@@ -459,6 +451,27 @@ def _merge_carried(names, K, n_supports, changed, parts, pens, base_contacts) ->
     return ContactSet(names, K, out.a[order], out.b[order], out.normal[order],
                       out.tangent_u[order], out.tangent_v[order], out.vertices[vorder],
                       vnew[vorder], out.gap[order], tuple(pens))
+
+
+def _carried(names, n_supports, changed, base_contacts):
+    """(part, penetrations, node index) of the contacts of ``base_contacts`` between
+    nodes that did not change (see :func:`_merge_carried`)."""
+    bc = base_contacts
+    node_changed = np.r_[changed, np.zeros(n_supports, bool)]
+    keep = ~(node_changed[bc.a] | node_changed[bc.b]) if bc.count else np.zeros(0, bool)
+    kept = np.nonzero(keep)[0]
+    part = None
+    if len(kept):
+        vsel = keep[bc.vertex_contact]
+        remap = -np.ones(bc.count, int)
+        remap[kept] = np.arange(len(kept))
+        part = (bc.a[kept], bc.b[kept], bc.normal[kept], bc.vertices[vsel],
+                remap[bc.vertex_contact[vsel]], bc.tangent_u[kept], bc.tangent_v[kept],
+                bc.gap[kept], np.ones(len(kept), bool))
+    index = {n: k for k, n in enumerate(names)}
+    pens = [p for p in bc.penetrations
+            if not (node_changed[index[p[0]]] or node_changed[index[p[1]]])]
+    return part, pens, index
 
 
 def update_contacts_of_one(variants: list[Arrangement], base: Arrangement,
@@ -561,10 +574,11 @@ def update_contacts_of_one(variants: list[Arrangement], base: Arrangement,
                 sup_parts[n] = (np.full(r1 - r0, k), np.array([r[1] for r in sup_rows[r0:r1]]),
                                 normal[r0:r1], verts[w0:w1], vidx[w0:w1] - r0, u[r0:r1],
                                 v[r0:r1], gap[r0:r1], ok[r0:r1])
+    carried = _carried(names, len(base.supports), changed, base_contacts)  # shared by all
     for n, m in enumerate(batch):
         parts = [p for p in (pair_parts[n], sup_parts[n]) if p is not None]
         out[m] = _merge_carried(names, K, len(base.supports), changed, parts, pens[n],
-                                base_contacts)
+                                base_contacts, carried)
     return out
 
 

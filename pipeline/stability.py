@@ -271,6 +271,18 @@ class EquilibriumSystem:
             self._shared["entries"] = (rows.ravel(), c_idx, self.blocks[c_idx, s_idx])
         return self._shared["entries"]
 
+    def components(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """:func:`_components` of this system (shared by systems of one topology)."""
+        if "components" not in self._shared:
+            self._shared["components"] = _components(self)
+        return self._shared["components"]
+
+    def grouping(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`_body_columns` of this system (shared by systems of one topology)."""
+        if "grouping" not in self._shared:
+            self._shared["grouping"] = _body_columns(self)
+        return self._shared["grouping"]
+
     def half_pyramid(self) -> np.ndarray:
         """(ncol,) bool: every other edge of each friction pyramid (an inscribed square)
         and the single column of each frictionless vertex: a subset of the columns, so a
@@ -369,6 +381,61 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     if fixed_contacts is not None:
         no_friction &= ~fixed_contacts
 
+    # the index structure (columns, their bodies and rows, the components) depends only
+    # on which nodes touch through how many vertices, which contacts have friction and
+    # how cuboids group into bodies: shared by every system with the same topology
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=20)
+    for part in (contacts.a, contacts.b, contacts.vertex_contact, no_friction,
+                 bodies.of_node, bodies.anchored):
+        h.update(np.ascontiguousarray(part).tobytes())
+        h.update(b"|")
+    key = h.digest()
+    topo = _TOPOLOGY.get(key)
+    if topo is None:
+        topo = _topology(contacts, bodies, G, active, ga, gb, no_friction)
+        if len(_TOPOLOGY) >= TOPOLOGY_CACHE_MAX:
+            _TOPOLOGY.clear()
+        _TOPOLOGY[key] = topo
+    free, row_of_body, contact_bodies, col_vertex, j, m, fric, c_idx, s_idx, gu, col_row, b, \
+        shared = topo
+    dirs = contacts.normal[m] + (fric * mu)[:, None] * (
+        _PYRAMID_COS[j][:, None] * contacts.tangent_u[m]
+        + _PYRAMID_SIN[j][:, None] * contacts.tangent_v[m])
+    p = contacts.vertices[col_vertex]
+
+    ncol = len(col_vertex)
+    W = bodies.mass * GRAVITY
+    # blocks[c, side] = the 6 scaled equilibrium coefficients of column c on body side
+    # (both sides at once: side 0 is body a, pushed along +dir; side 1 is b, along -dir)
+    blocks = np.zeros((ncol, 2, 6))
+    if len(c_idx):
+        du = np.where((s_idx == 0)[:, None], 1.0, -1.0) * dirs[c_idx]
+        torque = cross(p[c_idx] - bodies.com[gu], du)
+        blocks[c_idx, s_idx, :3] = du / W[gu][:, None]
+        blocks[c_idx, s_idx, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
+    Wf, WLf = W[free], W[free] * bodies.size[free]  # force rows in weights, torque rows
+    row_scale = np.stack([Wf, Wf, Wf, WLf, WLf, WLf], axis=1).ravel()
+    return EquilibriumSystem(None, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
+                             col_row, bodies.com[free, 2], dict(shared))
+
+
+#: topologies of recent systems (see :func:`build_system`), cleared beyond this many
+TOPOLOGY_CACHE_MAX = 256
+_TOPOLOGY: dict[bytes, tuple] = {}
+
+
+def _topology(contacts: ContactSet, bodies: Bodies, G: int, active, ga, gb, no_friction
+              ) -> tuple:
+    """The index arrays of :func:`build_system` (read-only, shared between systems) and
+    the derived structures that depend on nothing else (components, body columns)."""
+    free = np.nonzero(~bodies.anchored)[0]
+    row_of_body = -np.ones(G, int)
+    row_of_body[free] = np.arange(len(free))
+    M = contacts.count
+    contact_bodies = np.stack([np.where(active, ga, -1), np.where(active, gb, -1)], axis=1) \
+        if M else np.zeros((0, 2), int)
     # columns: for every vertex of an active contact, E pyramid edges (or 1 normal column)
     E = FRICTION_PYRAMID_EDGES
     vc = contacts.vertex_contact
@@ -380,35 +447,24 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
     j = np.arange(len(col_vertex)) - np.repeat(np.cumsum(n_cols) - n_cols, n_cols)
     m = vc[col_vertex]
     fric = ~no_friction[m]
-    dirs = contacts.normal[m] + (fric * mu)[:, None] * (
-        _PYRAMID_COS[j][:, None] * contacts.tangent_u[m]
-        + _PYRAMID_SIN[j][:, None] * contacts.tangent_v[m])
-    p = contacts.vertices[col_vertex]
-
-    ncol = len(col_vertex)
-    W = bodies.mass * GRAVITY
-    # blocks[c, side] = the 6 scaled equilibrium coefficients of column c on body side
-    # (both sides at once: side 0 is body a, pushed along +dir; side 1 is b, along -dir)
-    blocks = np.zeros((ncol, 2, 6))
-    col_row = -np.ones((ncol, 2), int)
+    col_row = -np.ones((len(col_vertex), 2), int)
     g2 = contact_bodies[m]
     use = g2 >= 0
     use[use] = ~bodies.anchored[g2[use]]
     c_idx, s_idx = np.nonzero(use)
-    if len(c_idx):
-        gu = g2[c_idx, s_idx]
-        du = np.where((s_idx == 0)[:, None], 1.0, -1.0) * dirs[c_idx]
-        torque = cross(p[c_idx] - bodies.com[gu], du)
-        blocks[c_idx, s_idx, :3] = du / W[gu][:, None]
-        blocks[c_idx, s_idx, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
-        col_row[c_idx, s_idx] = row_of_body[gu]
-    nrow = 6 * len(free)
-    b = np.zeros(nrow)
+    gu = g2[c_idx, s_idx]
+    col_row[c_idx, s_idx] = row_of_body[gu]
+    b = np.zeros(6 * len(free))
     b[6 * np.arange(len(free)) + 2] = 1.0  # contacts must lift each body's weight
-    Wf, WLf = W[free], W[free] * bodies.size[free]  # force rows in weights, torque rows
-    row_scale = np.stack([Wf, Wf, Wf, WLf, WLf, WLf], axis=1).ravel()
-    return EquilibriumSystem(None, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
-                             col_row, bodies.com[free, 2])
+    out = (free, row_of_body, contact_bodies, col_vertex, j, m, fric, c_idx, s_idx, gu,
+           col_row, b)
+    for a in out:
+        a.setflags(write=False)
+    probe = EquilibriumSystem(None, b, free, None, col_vertex, m, None, contact_bodies, None,
+                              col_row, None)
+    shared = {"components": _components(probe), "grouping": _body_columns(probe),
+              "half": probe.half_pyramid()}
+    return (*out, shared)
 
 
 # ------------------------------------------------------------------------- solvers
@@ -533,7 +589,7 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
               tol: float = 1e-10, bodies: np.ndarray | None = None,
               grouping: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
               max_cluster: int | None = None, memo: dict | None = None,
-              proof: list | None = None) -> np.ndarray | None:
+              proof: list | None = None, normal_first: bool = True) -> np.ndarray | None:
     """A zero-residual certificate by carrying loads top-down, or None.
 
     Free bodies are taken from the highest centre of mass down.  Each body's weight
@@ -571,6 +627,8 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
     pass at once: every cluster it would join must balance its rows too, to ``tol``, so
     none can, and the answer is None as after the merges.  Its floor is appended to
     ``proof`` (a list kept by the caller): the component's E is at least that much.
+    ``normal_first`` False: each unit is balanced with friction at once (a certificate
+    for tilted gravity, where normal forces alone rarely balance a body).
     """
     from scipy.optimize import nnls
 
@@ -590,10 +648,10 @@ def load_path(system: EquilibriumSystem, column_mask: np.ndarray | None = None,
         unit = units[i]
         if len(unit) == 1:
             ok = _balance_body(system, unit[0], lam, owner, i, done, usable, cols_all, side_all,
-                               starts, tol, nnls, memo)
+                               starts, tol, nnls, memo, normal_first)
         else:
             ok = _balance_cluster(system, unit, lam, owner, i, done, usable, cols_all, side_all,
-                                  starts, tol, nnls, memo)
+                                  starts, tol, nnls, memo, normal_first)
         if ok:
             done[unit] = True
             i += 1
@@ -650,7 +708,7 @@ LOAD_PATH_MEMO_MAX = 20000
 
 
 def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, starts, tol,
-                  nnls, memo: dict | None = None) -> bool:
+                  nnls, memo: dict | None = None, normal_first: bool = True) -> bool:
     """Balance free body ``r`` with its contacts to bodies not yet done (see load_path)."""
     c = cols_all[starts[r]:starts[r + 1]]
     sd = side_all[starts[r]:starts[r + 1]]
@@ -670,7 +728,7 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
     if memo is not None:
         import hashlib
 
-        h = hashlib.blake2b(digest_size=20)
+        h = hashlib.blake2b(b"" if normal_first else b"friction", digest_size=20)
         for part in (coef_u, inv, rhs, np.float64(tol)):
             h.update(np.ascontiguousarray(part).tobytes())
         key = h.digest()
@@ -681,14 +739,16 @@ def _balance_body(system, r, lam, owner, pos, done, usable, cols_all, side_all, 
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=n_vert)
-    normal_coef = np.zeros((n_vert, 6))
-    np.add.at(normal_coef, inv, coef_u)
-    normal_coef /= per_vert[:, None]
-    x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
-    if x is not None:
-        x = (x / per_vert)[inv]
-    else:  # 2) with friction
+    x = None
+    if normal_first:
+        per_vert = np.bincount(inv, minlength=n_vert)
+        normal_coef = np.zeros((n_vert, 6))
+        np.add.at(normal_coef, inv, coef_u)
+        normal_coef /= per_vert[:, None]
+        x = _exact_nnls(normal_coef.T, rhs, tol, nnls)
+        if x is not None:
+            x = (x / per_vert)[inv]
+    if x is None:  # 2) with friction
         x = _exact_nnls(coef_u.T, rhs, tol, nnls)
     if key is not None:
         if len(memo) >= LOAD_PATH_MEMO_MAX:
@@ -722,7 +782,7 @@ def _exact_nnls(A: np.ndarray, b: np.ndarray, tol: float, nnls) -> np.ndarray | 
 
 
 def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side_all, starts,
-                     tol, nnls, memo: dict | None = None) -> bool:
+                     tol, nnls, memo: dict | None = None, normal_first: bool = True) -> bool:
     """Balance the bodies of ``unit`` jointly (forces between them are unknowns too).
 
     ``memo`` as for :func:`_balance_body`: the cluster's matrix, vertex grouping and
@@ -753,7 +813,8 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
     if memo is not None:
         import hashlib
 
-        h = hashlib.blake2b(b"cluster", digest_size=20)
+        h = hashlib.blake2b(b"cluster" if normal_first else b"cluster-friction",
+                            digest_size=20)
         for part in (A, inv, rhs, np.float64(tol)):
             h.update(np.ascontiguousarray(part).tobytes())
         key = h.digest()
@@ -764,14 +825,16 @@ def _balance_cluster(system, unit, lam, owner, pos, done, usable, cols_all, side
             lam[cu] = hit
             owner[cu] = pos
             return True
-    per_vert = np.bincount(inv, minlength=n_vert)
-    An = np.zeros((n_rows, n_vert))
-    np.add.at(An, (slice(None), inv), A)
-    An /= per_vert
-    x = _exact_nnls(An, rhs, tol, nnls)
-    if x is not None:
-        x = (x / per_vert)[inv]
-    else:
+    x = None
+    if normal_first:
+        per_vert = np.bincount(inv, minlength=n_vert)
+        An = np.zeros((n_rows, n_vert))
+        np.add.at(An, (slice(None), inv), A)
+        An /= per_vert
+        x = _exact_nnls(An, rhs, tol, nnls)
+        if x is not None:
+            x = (x / per_vert)[inv]
+    if x is None:
         x = _exact_nnls(A, rhs, tol, nnls)
     if key is not None:
         if len(memo) >= LOAD_PATH_MEMO_MAX:
@@ -849,7 +912,7 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
         raise ValueError(f"backend must be auto, nnls or qp, got {backend!r}")
     lam = np.zeros(len(system.col_vertex))
     used = set()
-    comps = _components(system) if components is None else components
+    comps = system.components() if components is None else components
     dense = Dr = grouping = None
     for rows, cols in comps:
         if column_mask is not None:
@@ -891,11 +954,11 @@ def solve_energy(system: EquilibriumSystem, backend: str = "auto",
                 continue
         if backend == "auto" and system.blocks is not None:
             if grouping is None:
-                grouping = _body_columns(system)
+                grouping = system.grouping()
             memo = None if cache is None else cache.setdefault("load_path_memo", {})
             if certificate and column_mask is None:
                 x = load_path(system, system.half_pyramid(), bodies=rows[::6] // 6,
-                              grouping=grouping, memo=memo)
+                              grouping=grouping, memo=memo, normal_first=False)
                 if x is not None:
                     x = x[cols]
                     if key is not None:
@@ -1098,7 +1161,7 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         if c.type == "fixed":
             fixed_mask[lookup[c.key]] = True
     system = build_system(arr, contacts, bodies, mu, side_friction, fixed_mask)
-    comps = _components(system)
+    comps = system.components()
     digests = None if solve_cache is None else \
         {id(cols): _component_digest(system, rows, cols) for rows, cols in comps}
     bound = threshold if verdict_only else None

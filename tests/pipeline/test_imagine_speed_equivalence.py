@@ -78,7 +78,7 @@ def test_cluster_load_path_from_the_memo_equals_a_fresh_pass(monkeypatch):
     real = stability._balance_cluster
 
     def spy(*args):
-        memo = args[-1]
+        memo = args[12]  # (system, unit, ..., tol, nnls, memo, normal_first)
         n = None if memo is None else len(memo)
         out = real(*args)
         if memo is not None:
@@ -344,3 +344,46 @@ def test_same_object_pair_edges_are_those_of_all_pairs():
     max_ext = MAX_EXTENSION_REL * arr.scale_length()
     every = [e for e in pair_edges(arr, max_ext) if e.same_object]
     assert every and pair_edges(arr, max_ext, same_object=True) == every
+
+
+def test_remembered_body_grouping_equals_a_fresh_union_find():
+    from tests.pipeline.test_search_speed_equivalence import _shelf
+
+    arr = _shelf(4)
+    cs = find_contacts_of(arr)
+    fixed = stability.fixed_node_pairs(arr, cs)
+    stability._BODY_GROUPING.clear()
+    fresh = stability.build_bodies(arr, fixed)
+    again = stability.build_bodies(arr, fixed)  # from the remembered grouping
+    assert stability._BODY_GROUPING
+    for f in ("of_node", "anchored", "mass", "com", "size"):
+        np.testing.assert_array_equal(getattr(fresh, f), getattr(again, f))
+
+
+def find_contacts_of(arr):
+    from pipeline.contacts import find_contacts
+
+    return find_contacts(arr)
+
+
+def test_systems_from_a_remembered_topology_equal_fresh_ones():
+    from pipeline.contacts import find_contacts
+    from tests.pipeline.test_search_speed_equivalence import _room_variants
+
+    base, variants = _room_variants(2, 3)
+    for arr in (base, *variants):
+        arr = arr.with_(contacts=())
+        cs = find_contacts(arr)
+        bodies = stability.build_bodies(arr, [])
+        stability._TOPOLOGY.clear()
+        fresh = stability.build_system(arr, cs, bodies, 0.7)
+        again = stability.build_system(arr, cs, bodies, 0.7)  # topology remembered
+        assert stability._TOPOLOGY
+        for f in ("b", "free", "row_scale", "col_vertex", "col_contact", "col_dir",
+                  "contact_bodies", "blocks", "col_row", "free_height"):
+            np.testing.assert_array_equal(getattr(fresh, f), getattr(again, f))
+        fresh_comps = stability._components(fresh)
+        assert len(again.components()) == len(fresh_comps)
+        for (r1, c1), (r2, c2) in zip(again.components(), fresh_comps, strict=True):
+            np.testing.assert_array_equal(r1, r2)
+            np.testing.assert_array_equal(c1, c2)
