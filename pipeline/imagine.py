@@ -189,6 +189,14 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
 #: the viewing direction is below this fraction of its other horizontal extent; it is
 #: then given depth up to that other extent (a square footprint: a leg, a pillar, a box).
 THIN_FRACTION = 0.5
+#: ... and when that axis is within this many degrees of the horizontal viewing direction
+#: (a box of its own: neighbours hide the sides of a box in a pile seen obliquely; or a
+#: part whose seen face is at least FACE_ON_PART_MIN_FACE on both sides: a sofa's base) ...
+FACE_ON_MAX_DEG = 70.0
+#: ... or this many for a smaller part of an object with other parts (a bracket plate
+#: under a board, seen from the side, is thin).
+FACE_ON_PART_MAX_DEG = 45.0
+FACE_ON_PART_MIN_FACE = 0.2
 
 
 def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 0.0,
@@ -199,7 +207,10 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     a slab a few millimetres deep along the viewing direction: its depth is simply not
     in the data, and as a sliver it can stand only glued.  Such a box (horizontal extent
     along an axis within 45 degrees of the first view's horizontal direction below
-    :data:`THIN_FRACTION` of its other horizontal extent) has its back face pushed away
+    :data:`THIN_FRACTION` of its other horizontal extent; within 70 degrees when it is
+    also thin against its height and is a box of its own or shows a face of at least
+    :data:`FACE_ON_PART_MIN_FACE`: a box in a pile seen obliquely, whose sides its
+    neighbours hide, or a sofa's base) has its back face pushed away
     from the camera towards that other extent, in ``steps`` increments, as far as no
     view saw the added space empty and no other box or support is entered.  A part of an
     object with other parts goes no deeper than they span together along that axis (a
@@ -221,11 +232,20 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
             continue
         look /= np.linalg.norm(look)
         horizontal = [a for a in range(3) if abs(c.rotation[2, a]) <= 0.5]
+        height = float(c.size[int(np.argmax(np.abs(c.rotation[2])))])
         for axis in horizontal:
             along = float(c.rotation[:, axis] @ look)
             width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
-            if abs(along) < np.cos(np.radians(45)) or c.size[axis] >= THIN_FRACTION * width:
+            if c.size[axis] >= THIN_FRACTION * width:
                 continue
+            if abs(along) < np.cos(np.radians(FACE_ON_PART_MAX_DEG)):
+                # seen obliquely: only a box of its own or a big face, and only a slab
+                # standing on its edge (not a keyboard seen from above)
+                big = np.delete(c.size, axis).min() >= FACE_ON_PART_MIN_FACE
+                if (abs(along) < np.cos(np.radians(FACE_ON_MAX_DEG))
+                        or not (big or _single_part(arr, c))
+                        or c.size[axis] >= THIN_FRACTION * height):
+                    continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
             target = min(width, _object_depth(arr, c, axis))
@@ -381,6 +401,12 @@ def _near(arr: Arrangement, ids: set[int], pad: float = 0.01) -> list[int]:
     for k in sel:
         mask |= np.all((lo <= hi[k] + pad) & (hi >= lo[k] - pad), axis=1)
     return np.nonzero(mask)[0].tolist()
+
+
+def _single_part(arr: Arrangement, c: Cuboid) -> bool:
+    """Whether ``c`` is the only part of its object (or has no object)."""
+    return c.object is None or not any(o.object == c.object and o.id != c.id
+                                       for o in arr.cuboids)
 
 
 def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:

@@ -6,6 +6,9 @@ looking at the centre with the world's z up.  ``K`` views are spread evenly over
 azimuth range (a KinectFusion-like sweep) from a random start.  Walls are respected: the
 camera stays in front of every wall (a room is seen from inside), moving closer along
 its ray when needed, and with walls present the default azimuths face the open side.
+Without walls, ``facing`` keeps the azimuths within an angle of a normal of the broad
+side of the scene's footprint, as a person scanning a wall of boxes stands in front of
+it rather than at its end.
 """
 
 from __future__ import annotations
@@ -30,7 +33,9 @@ class ViewRanges:
     the open side (the mean wall normal) with walls.  ``fit`` moves the camera back so
     the scene's bounding sphere fills at most the image (never closer than sampled, and
     never farther than ``max_fit_distance``, the Kinect's useful range: a large room is
-    then seen in part, as a real single scan would).
+    then seen in part, as a real single scan would).  ``facing_deg`` (no walls, no
+    azimuth range): azimuths within this angle of the outward normal of one long side
+    (picked at random) of the footprint's minimum-area rectangle.
     """
 
     distance: tuple[float, float] = (1.5, 3.0)
@@ -38,6 +43,7 @@ class ViewRanges:
     azimuth_deg: tuple[float, float] | None = None
     fit: bool = True
     max_fit_distance: float = 4.0
+    facing_deg: float | None = None
 
     @classmethod
     def from_dict(cls, d: dict | None) -> ViewRanges:
@@ -46,11 +52,12 @@ class ViewRanges:
             return cls()
         if isinstance(d, ViewRanges):
             return d
-        known = {"distance", "elevation", "azimuth", "elevation_deg", "azimuth_deg", "fit"}
+        known = {"distance", "elevation", "azimuth", "elevation_deg", "azimuth_deg", "fit",
+                 "facing", "facing_deg"}
         bad = set(d) - known
         if bad:
             raise InputError(f"view ranges: unknown keys {sorted(bad)}; expected distance, "
-                             "elevation, azimuth (degrees), fit")
+                             "elevation, azimuth, facing (degrees), fit")
         out = {}
         for key, name in (("distance", "distance"), ("elevation", "elevation_deg"),
                           ("elevation_deg", "elevation_deg"), ("azimuth", "azimuth_deg"),
@@ -67,6 +74,12 @@ class ViewRanges:
             raise InputError("view ranges.distance: must be positive metres")
         if "fit" in d:
             out["fit"] = bool(d["fit"])
+        for key in ("facing", "facing_deg"):
+            if d.get(key) is not None:
+                f = float(d[key])
+                if not (np.isfinite(f) and 0.0 <= f <= 180.0):
+                    raise InputError(f"view ranges.{key}: need degrees in [0, 180], got {d[key]!r}")
+                out["facing_deg"] = f
         return cls(**out)
 
 
@@ -77,6 +90,28 @@ def scene_center(arr: Arrangement) -> tuple[np.ndarray, float]:
     corners = box_corners(arr.centers, arr.rotations, arr.sizes).reshape(-1, 3)
     lo, hi = corners.min(axis=0), corners.max(axis=0)
     return (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
+
+
+def broad_side_azimuth(arr: Arrangement) -> float:
+    """Azimuth (radians) of an outward normal of a long side of the footprint.
+
+    The footprint is the minimum-area rectangle (OpenCV) around the cuboids' corners seen
+    from above; of its two long-side normals the one with azimuth in [-pi/2, pi/2) is
+    returned (the other is this plus pi).
+    """
+    import cv2
+
+    if not arr.cuboids:
+        return 0.0
+    xy = box_corners(arr.centers, arr.rotations, arr.sizes).reshape(-1, 3)[:, :2]
+    (_, _), (w, h), angle = cv2.minAreaRect(xy.astype(np.float32))
+    a = np.deg2rad(angle)
+    side = np.array([np.cos(a), np.sin(a)]) if w >= h else np.array([-np.sin(a), np.cos(a)])
+    normal = np.array([-side[1], side[0]])  # perpendicular to the long side
+    az = float(np.arctan2(normal[1], normal[0]))
+    if not -np.pi / 2 <= az < np.pi / 2:
+        az = az - np.pi if az >= np.pi / 2 else az + np.pi
+    return az
 
 
 def sample_viewpoints(arr: Arrangement, rng: np.random.Generator, views: int = 1,
@@ -110,6 +145,9 @@ def sample_viewpoints(arr: Arrangement, rng: np.random.Generator, views: int = 1
         open_dir = np.sum([s.normal[:2] for s in walls], axis=0)
         mid = np.arctan2(open_dir[1], open_dir[0]) if np.linalg.norm(open_dir) > 1e-9 else 0.0
         a_lo, a_hi = mid - np.deg2rad(75), mid + np.deg2rad(75)
+    elif r.facing_deg is not None:
+        mid = broad_side_azimuth(arr) + np.pi * float(rng.integers(0, 2))
+        a_lo, a_hi = mid - np.deg2rad(r.facing_deg), mid + np.deg2rad(r.facing_deg)
     else:
         a_lo, a_hi = 0.0, 2 * np.pi
     span = a_hi - a_lo

@@ -1,8 +1,11 @@
 """``unseen eval complexity``: the paper's Table 3, scenes of growing size.
 
 Stacks of 6, 9 and 18 boxes (``stack --n-boxes``) and rooms of 30-60 cuboids, single
-Kinect-noised views, ``--n`` scenes per configuration (default 2; ``--quick``: 1 scene of
-the 6-box stack).  Per configuration: the ground truth's proxies, contacts and valence
+Kinect-noised views, ``--n`` scenes per configuration (default 4; ``--quick``: 1 scene of
+the 6-box stack).  A stack is seen from in front of its broad side (azimuth within
+:data:`STACK_FACING_DEG` of its normal, as in the paper's Fig. 13), not from a random
+azimuth: a row of boxes seen end-on hides all but the nearest column; a room is seen
+from its open side.  Per configuration: the ground truth's proxies, contacts and valence
 statistics (max / median / mean / min contacts per proxy, supports included as Table 3
 counts them), initial and optimized typed P / R and F1, and the wall time per scene (the
 whole task: synthesizing and scanning the scene, initial cuboids, search and
@@ -20,12 +23,16 @@ from pathlib import Path
 
 import numpy as np
 
+#: Stacks are seen from within this many degrees of the normal of their broad side.
+STACK_FACING_DEG = 45.0
+_FACING = {"view_ranges": {"facing": STACK_FACING_DEG}}
 #: (label, family, options)
-CONFIGS = (("stack 6", "stack", {"n_boxes": 6}), ("stack 9", "stack", {"n_boxes": 9}),
-           ("stack 18", "stack", {"n_boxes": 18}),
+CONFIGS = (("stack 6", "stack", {"n_boxes": 6, **_FACING}),
+           ("stack 9", "stack", {"n_boxes": 9, **_FACING}),
+           ("stack 18", "stack", {"n_boxes": 18, **_FACING}),
            ("room 30-60", "room", {"min_cuboids": 30, "max_cuboids": 60}))
 QUICK_CONFIGS = CONFIGS[:1]
-DEFAULT_N = 2
+DEFAULT_N = 4
 
 
 def run(args: argparse.Namespace) -> int:

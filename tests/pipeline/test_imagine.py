@@ -158,6 +158,53 @@ def test_a_leg_seen_face_on_gets_depth_behind_it_up_to_its_width():
     assert ids == [] and out.cuboids[0] is side
 
 
+def _oblique_row_view(angle_deg, height=0.3):
+    """A row of three touching boxes seen at ``angle_deg`` from its front face's normal,
+    from the middle box's mid height (its top and, beyond 0 degrees, the side turned
+    to the camera hidden by a neighbour), and the middle box fitted as its front face."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    a = np.radians(angle_deg)
+    eye = (2.0 * np.sin(a), -2.0 * np.cos(a), height / 2)
+    T = look_at(eye, (0.0, 0.15, height / 2))
+    row = [box(f"n{k}", (0.3 * k, 0.15, height / 2), (0.3, 0.3, height)) for k in (-1, 1)]
+    truth = [*row, box("mid", (0, 0.15, height / 2), (0.3, 0.3, height))]
+    views = [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+    return row, views
+
+
+@pytest.mark.parametrize("angle", [55.0, 65.0])
+def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
+    from pipeline.imagine import FACE_ON_MAX_DEG, FACE_ON_PART_MIN_FACE, deepen_thin_boxes
+
+    row, views = _oblique_row_view(angle)
+    seen = box("mid", (0, 0.004, 0.15), (0.3, 0.008, 0.3))  # only its front, 8 mm deep
+    out, ids = deepen_thin_boxes(Arrangement((seen, *row), (ground(),)), views)
+    assert ids == ["mid"]  # beyond 45 degrees: its neighbours hid its sides
+    np.testing.assert_allclose(out.cuboids[0].size, [0.3, 0.3, 0.3], atol=1e-9)
+    assert out.cuboids[0].center[1] == pytest.approx(0.15)
+    # a small part of an object with other parts (a bracket) is not, at that angle ...
+    part = box("mid", (0, 0.004, 0.15), (0.15, 0.008, 0.15), object="shelf")
+    other = box("board", (0, 0.15, 0.5), (0.6, 0.3, 0.02), object="shelf")
+    assert FACE_ON_PART_MIN_FACE > 0.15
+    out, ids = deepen_thin_boxes(Arrangement((part, other, *row), (ground(),)), views)
+    assert "mid" not in ids
+    # ... while one with a big face (a sofa's base) is
+    out, ids = deepen_thin_boxes(Arrangement((seen.with_(object="shelf"), other, *row),
+                                             (ground(),)), views)
+    assert ids == ["mid"]
+    # a low box seen from above-ish (thin against its width but not its height) is not
+    flat = box("mid", (0, 0.004, 0.01), (0.3, 0.008, 0.012))
+    out, ids = deepen_thin_boxes(Arrangement((flat, *row), (ground(),)), views)
+    assert ids == []
+    assert FACE_ON_MAX_DEG < 80.0
+    row, views = _oblique_row_view(80.0)
+    out, ids = deepen_thin_boxes(Arrangement((seen, *row), (ground(),)), views)
+    assert ids == []  # beyond FACE_ON_MAX_DEG: no longer face-on
+
+
 def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
     # from above, the floor behind a thin panel is seen over its top: most of the space
     # a panel as deep as it is wide would fill was seen empty

@@ -256,6 +256,41 @@ def test_viewpoints_stay_in_front_of_walls():
         assert (s.signed_distance(T[:, :3, 3]) > 0).all()
 
 
+@pytest.mark.parametrize("yaw_deg", [0.0, 17.0, 71.6, 90.0, 133.0])
+def test_facing_views_stand_in_front_of_a_row_of_boxes(yaw_deg):
+    """A row of boxes along ``yaw`` is seen from within ``facing`` of its broad side's
+    normals (yaw +- 90 degrees), on both sides; unconstrained draws also look end-on."""
+    from simulate.viewpoints import broad_side_azimuth, sample_viewpoints, scene_center
+
+    yaw = np.deg2rad(yaw_deg)
+    along = np.array([np.cos(yaw), np.sin(yaw), 0.0])
+    rot = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1]])
+    row = Arrangement(tuple(box(f"b{k}", tuple(along * 0.3 * k + [0, 0, 0.15]),
+                                (0.28, 0.35, 0.3), rotation=rot) for k in range(6)),
+                      (ground(),))
+    normal = np.rad2deg(broad_side_azimuth(row))
+    assert -90.0 <= normal < 90.0
+    assert abs((normal - yaw_deg) % 180.0 - 90.0) < 1e-3  # the normal is yaw + 90 mod 180
+    c, _ = scene_center(row)
+
+    def off_normal(T):  # degrees between each camera's azimuth and the nearer normal
+        off = T[:, :3, 3] - c
+        az = np.rad2deg(np.arctan2(off[:, 1], off[:, 0]))
+        return np.abs((az - normal + 90.0) % 180.0 - 90.0), np.cos(np.deg2rad(az - normal))
+
+    sides = set()
+    for seed in range(12):
+        dev, cos = off_normal(sample_viewpoints(row, np.random.default_rng(seed), 3,
+                                                {"facing": 30.0}))
+        assert (dev <= 30.0 + 1e-6).all()
+        sides.add(bool(cos[0] > 0))
+    assert sides == {True, False}  # both long sides get picked
+    dev, _ = off_normal(sample_viewpoints(row, np.random.default_rng(0), 12))
+    assert dev.max() > 60.0  # the default full circle includes end-on views
+    with pytest.raises(InputError, match="facing"):
+        sample_viewpoints(row, np.random.default_rng(0), 1, {"facing": 200})
+
+
 def test_frame_validates_shapes():
     from simulate.scan import Frame
 
