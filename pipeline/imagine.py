@@ -66,16 +66,101 @@ ALIGN_MAX_DEG = 15.0
 OBJECT_YAW_MAX_DEG = 30.0
 
 
+#: An upright box's yaw is fitted to the depth views within this many degrees either
+#: side of its own (:func:`fit_yaws`), in steps of :data:`YAW_FIT_STEP_DEG` ...
+YAW_FIT_MAX_DEG = 20.0
+YAW_FIT_STEP_DEG = 1.0
+#: ... and the box turns only when the turned box holds this many times the observed
+#: points it held as it was, and at least :data:`YAW_FIT_MIN_POINTS` more.
+YAW_FIT_GAIN = 1.15
+YAW_FIT_MIN_POINTS = 50
+#: Pixel stride of the observed points used (every n-th row and column).
+YAW_FIT_STRIDE = 2
+
+
+def observed_points(views: list[DepthView], stride: int = YAW_FIT_STRIDE
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """World points of every ``stride``-th pixel of the views and a distance tolerance
+    per point (twice the sensor's axial noise at its depth, at least a centimetre)."""
+    from .camera import backproject, transform
+
+    pts, tol = [np.zeros((0, 3))], [np.zeros(0)]
+    for v in views:
+        d = np.zeros_like(np.asarray(v.depth, float))
+        d[::stride, ::stride] = np.asarray(v.depth, float)[::stride, ::stride]
+        p, _ = backproject(d, v.intrinsics)
+        tol.append(np.maximum(0.01, 2 * depth_noise(p[:, 2])))
+        pts.append(transform(np.asarray(v.T_world_cam, float), p))
+    return np.concatenate(pts), np.concatenate(tol)
+
+
+def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_MAX_DEG,
+             step_deg: float = YAW_FIT_STEP_DEG, gain: float = YAW_FIT_GAIN,
+             min_points: int = YAW_FIT_MIN_POINTS) -> tuple[Arrangement, list[str]]:
+    """Turn upright boxes about the vertical through their centres to fit what was seen.
+
+    An initial box can come with a yaw that is off (a box fitted to a few points, or
+    initial cuboids from elsewhere): a shelf's board turned by 15 degrees about its own
+    centre pokes 10 cm out of the shelf at one end and lets the books at the other fall
+    through.  The observed points (every :data:`YAW_FIT_STRIDE`-th pixel of every view)
+    that lie in a box, grown by the sensor noise, are counted at yaws within
+    ``max_deg`` of its own; a box that holds ``gain`` times as many (and ``min_points``
+    more) at another yaw takes the best one.  Boxes marked ``slanted`` or not upright
+    are left alone.  Returns the arrangement and the ids turned.
+    """
+    from scipy.spatial import cKDTree
+
+    from .model import rotation_about_axis
+
+    if not views:
+        return arr, []
+    pts, tol = observed_points(views)
+    if not len(pts):
+        return arr, []
+    tree = cKDTree(pts)
+    pad = float(tol.max())
+    offsets = np.radians(np.arange(-max_deg, max_deg + 1e-9, step_deg))
+    zero = int(np.argmin(np.abs(offsets)))
+    cos, sin = np.cos(offsets), np.sin(offsets)
+    cubs = list(arr.cuboids)
+    turned = []
+    for i, c in enumerate(cubs):
+        if c.extra.get("slanted") or abs(c.rotation[2]).max() < 1 - 1e-9:
+            continue
+        near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
+        if len(near) < min_points:
+            continue
+        d = pts[near] - c.center
+        t = tol[near]
+        lim = c.size / 2 + t[:, None]
+        inside = np.zeros(len(offsets), int)
+        for k in range(len(offsets)):
+            # the box turned by +a about z holds the points turned by -a
+            q = np.stack([cos[k] * d[:, 0] + sin[k] * d[:, 1],
+                          -sin[k] * d[:, 0] + cos[k] * d[:, 1], d[:, 2]], axis=1) @ c.rotation
+            inside[k] = int(np.count_nonzero(np.all(np.abs(q) <= lim, axis=1)))
+        # the points held within the noise make a plateau of yaws: take its middle
+        top = np.flatnonzero(inside >= inside.max() - max(1, 0.005 * inside.max()))
+        best = int(top[len(top) // 2])
+        if inside[best] >= gain * inside[zero] and inside[best] - inside[zero] >= min_points:
+            cubs[i] = c.with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], offsets[best])
+                              @ c.rotation)
+            turned.append(c.id)
+    return arr.with_(cuboids=tuple(cubs)), turned
+
+
 def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
-                yaw_deg: float = OBJECT_YAW_MAX_DEG) -> tuple[Arrangement, int]:
+                yaw_deg: float = OBJECT_YAW_MAX_DEG,
+                views: list[DepthView] | None = None) -> tuple[Arrangement, int]:
     """Undo small fitting errors in orientation: gravity and an object's own axes.
 
     A box whose axis nearest the vertical is off by at most ``max_deg`` is turned about
     its centre to stand upright (furniture and boxes stand; leaning parts are fitted as
-    ``slanted`` and left alone), and the parts of one object whose yaws (modulo 90
-    degrees) lie within ``yaw_deg`` of the object's volume-weighted mean yaw take that
-    yaw: a chair's legs and seat share one frame.  Returns the arrangement and the
-    number of boxes turned.
+    ``slanted`` and left alone); with ``views``, upright boxes then take the yaw that
+    fits the observed points best (:func:`fit_yaws`); and the parts of one object whose
+    yaws (modulo 90 degrees) lie within ``yaw_deg`` of the object's volume-weighted mean
+    yaw take that yaw: a chair's legs and seat share one frame.  Returns the arrangement
+    and the number of boxes turned.
     """
     from .model import rotation_about_axis
 
@@ -92,6 +177,10 @@ def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
             R = rotation_about_axis(np.cross(a, [0.0, 0.0, 1.0]), tilt) @ c.rotation
             cubs[i] = c.with_(rotation=R)
             turned.add(i)
+    if views:
+        fitted, ids = fit_yaws(arr.with_(cuboids=tuple(cubs)), views)
+        cubs = list(fitted.cuboids)
+        turned |= {arr.index[k] for k in ids}
     groups: dict[str, list[int]] = {}
     for i, c in enumerate(cubs):
         if c.object is not None and not c.extra.get("slanted"):
@@ -1141,7 +1230,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     arr = arr.with_(cuboids=tuple(
         c if c.observed is not None else c.with_(observed=ObservedBox(c.center, c.size))
         for c in arr.cuboids))
-    arr, aligned = align_boxes(arr)
+    arr, aligned = align_boxes(arr, views=views)
     arr, repaired = repair_overlaps(arr)
     timings["repair"] = time.perf_counter() - t
 

@@ -509,3 +509,37 @@ def test_a_point_beside_a_part_thinner_than_a_pixel_is_not_seen_empty():
     assert visible_free_fraction(point(1), [view]) == 0.0
     assert visible_free_fraction(point(3), [view]) == 1.0
     assert np.allclose(transform(invert(T), point(3)), point(3))
+
+
+def test_fit_yaws_turns_a_board_back_onto_what_the_camera_saw():
+    # a shelf's board and a box on the floor, seen from the front and above; the board
+    # comes with its yaw 12 degrees off (about its own centre: its ends 8 cm out of
+    # place), the box as seen.  The board turns back to within the 1-degree grid; the
+    # box, which fits, and a box marked slanted stay as they are
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import align_boxes, fit_yaws
+    from pipeline.model import rotation_about_z
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.4, -2.2, 1.4), (0.0, 0.0, 0.4))
+    yaw = 0.3
+    board = box("board", (0, 0, 0.5), (0.8, 0.3, 0.03), rotation=rotation_about_z(yaw),
+                object="shelf")
+    crate = box("crate", (0.7, 0.3, 0.15), (0.3, 0.25, 0.3), rotation=rotation_about_z(-0.2))
+    views = [DepthView(_depth_of_boxes([board, crate], T, intr), intr, T)]
+    off = board.with_(rotation=rotation_about_z(yaw + np.radians(12)))
+    out, ids = fit_yaws(Arrangement((off, crate), (ground(),)), views)
+    assert ids == ["board"]
+    R = out.cuboid("board").rotation
+    assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
+    np.testing.assert_array_equal(out.cuboid("board").center, board.center)
+    assert out.cuboid("crate") is crate
+    slanted = off.with_(extra={"slanted": True})
+    out, ids = fit_yaws(Arrangement((slanted, crate), (ground(),)), views)
+    assert ids == [] and out.cuboid("board") is slanted
+    # align_boxes with the views does the same before sharing the object's yaw
+    out, turned = align_boxes(Arrangement((off, crate), (ground(),)), views=views)
+    assert turned == 1
+    R = out.cuboid("board").rotation
+    assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
