@@ -293,8 +293,10 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     view saw the added space empty and no other box or support is entered.  A part of an
     object with other parts goes no deeper than they span together along that axis (a
     shelf's bottom board, seen from the front edge, as deep as its side panels and
-    other boards, not as deep as it is wide).  Returns the arrangement and the ids
-    deepened.
+    other boards, not as deep as it is wide), and no further than they reach behind it
+    (a chair's back, seen face-on on the rear of its seat, to the seat's rear edge: as
+    deep as the chair, it would hang 40 cm out behind it).  Returns the arrangement and
+    the ids deepened.
     """
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
@@ -317,7 +319,8 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            target = min(width, _object_depth(arr, c, axis))
+            target = min(width, _object_depth(arr, c, axis),
+                         _object_reach(arr, c, u) + float(c.size[axis]) / 2)
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break
@@ -484,6 +487,19 @@ def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
         return float("inf")
     proj = np.concatenate(proj)
     return float(proj.max() - proj.min())
+
+
+def _object_reach(arr: Arrangement, c: Cuboid, u: np.ndarray) -> float:
+    """How far the other parts of ``c``'s object reach beyond ``c``'s centre along the
+    unit vector ``u`` (inf when it has none): a chair's back, seen face-on at the rear
+    of its seat, has the seat's rear edge a few centimetres behind it, not the seat's
+    depth."""
+    if c.object is None:
+        return float("inf")
+    proj = [o.corners() @ u for o in arr.cuboids if o.object == c.object and o.id != c.id]
+    if not proj:
+        return float("inf")
+    return float(np.concatenate(proj).max() - c.center @ u)
 
 
 def _vertical_axis(c: Cuboid) -> int | None:

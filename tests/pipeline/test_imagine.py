@@ -543,3 +543,25 @@ def test_fit_yaws_turns_a_board_back_onto_what_the_camera_saw():
     assert turned == 1
     R = out.cuboid("board").rotation
     assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
+
+
+def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches():
+    # the back stands on the rear 3.5 cm of the seat; the camera in front sees only its
+    # front face, fitted as a 7 mm slab.  Deepened up to its width (as a leg would be)
+    # or its object's depth, it would reach 40 cm behind the chair and tip it over
+    # backwards; it goes as far as the seat's rear edge, the object's far end there
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 1.2), (0.0, 0.0, 0.5))
+    seat = box("seat", (0, 0, 0.43), (0.45, 0.45, 0.04), object="chair")
+    back = box("back", (0, 0.2075, 0.675), (0.45, 0.035, 0.45), object="chair")
+    views = [DepthView(_depth_of_boxes([seat, back], T, intr), intr, T)]
+    slab = box("back", (0, 0.1935, 0.675), (0.45, 0.007, 0.45), object="chair")
+    out, ids = deepen_thin_boxes(Arrangement((seat, slab), (ground(),)), views)
+    assert ids == ["back"]
+    b = out.cuboid("back")
+    assert b.size[1] == pytest.approx(0.035, abs=1e-9)
+    assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
