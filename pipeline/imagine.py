@@ -382,7 +382,8 @@ JOIN_TRIM_REL = 0.1
 JOIN_TRIM_MAX_SHARE = 0.5
 
 
-def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, list[str]]:
+def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | None = None,
+               margin: float = 0.0) -> tuple[Arrangement, list[str]]:
     """Extend parts of one object to meet where a short extension does, trimming the
     noisy edge of another object's box that is in the way.
 
@@ -394,8 +395,11 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     is applied when every box it enters belongs to another object
     and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
     (the face that reaches least far in), and never by more than
-    :data:`JOIN_TRIM_MAX_SHARE` of it.  Smallest added volume first; returns the
-    arrangement and ``"a+b"`` for each pair joined.
+    :data:`JOIN_TRIM_MAX_SHARE` of it.  With ``views``, two parts already held together
+    through their object's other parts (a screen on its neck on its foot) are not joined
+    through space a view saw empty (:func:`pipeline.extend.prune_by_visibility`'s test);
+    parts nothing else holds together are joined as before.  Smallest added volume
+    first; returns the arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
     from .search import short_join
@@ -407,11 +411,16 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     for _ in range(max_rounds):
         K = len(arr.cuboids)
         trials = []
+        held = _same_object_groups(arr) if views else {}
         for e in pair_edges(arr, max_ext, same_object=True):
             if not e.same_object or e.touching or isinstance(e.b, str):
                 continue
+            # parts already held together through their object's other parts (a screen
+            # on its neck on its foot) do not grow through space the sensor saw empty
+            both = held and held.get(e.a) == held.get(e.b)
             trials += [(o.volume, e.a, e.b, o) for o in e.options
-                       if o.extensions and short_join(arr, o)]
+                       if o.extensions and short_join(arr, o)
+                       and not (both and _seen_through(arr, o.extensions, views, margin))]
         touched: set[int] = set()  # boxes changed this round: their trials wait
         for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
             grown = {x.box for x in o.extensions}
@@ -461,6 +470,37 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
         if not touched:
             break
     return arr, joined
+
+
+def _same_object_groups(arr: Arrangement) -> dict[int, int]:
+    """Box index -> a label shared by the parts of one object that touch, directly or
+    through its other parts."""
+    parent = list(range(len(arr.cuboids)))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    idx = arr.index
+    for a, b in find_contacts(arr).pairs:
+        ia, ib = idx.get(a), idx.get(b)
+        if (ia is not None and ib is not None and arr.cuboids[ia].object is not None
+                and arr.cuboids[ia].object == arr.cuboids[ib].object):
+            parent[find(ia)] = find(ib)
+    return {k: find(k) for k in range(len(arr.cuboids)) if arr.cuboids[k].object is not None}
+
+
+def _seen_through(arr: Arrangement, extensions, views: list[DepthView] | None,
+                  margin: float) -> bool:
+    """Whether a view saw empty some slab the ``extensions`` would add (as
+    :func:`pipeline.extend.prune_by_visibility` judges a candidate)."""
+    from .extend import FREE_FRACTION_MAX, slab_samples, visible_free_fraction
+
+    return bool(views) and any(
+        visible_free_fraction(slab_samples(arr, x), views, margin) > FREE_FRACTION_MAX
+        for x in extensions)
 
 
 def _near(arr: Arrangement, ids: set[int], pad: float = 0.01) -> list[int]:
@@ -1256,7 +1296,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         scale = arr.scale_length()
         margin = 0.05 * scale
     arr, deepened = deepen_thin_boxes(arr, views, margin)
-    arr, joined_parts = join_parts(arr)
+    arr, joined_parts = join_parts(arr, views=views, margin=margin)
     hallucinated = []
     if symmetry:
         arr, hallucinated = hallucinate(arr, views, margin)

@@ -565,3 +565,29 @@ def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches(
     b = out.cuboid("back")
     assert b.size[1] == pytest.approx(0.035, abs=1e-9)
     assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
+
+
+def test_parts_held_through_their_object_do_not_join_through_space_seen_empty():
+    # a monitor: the screen hangs on the neck, the neck stands on the foot, and the
+    # camera sees the wall through the 6 cm between the screen and the foot.  Without
+    # the views (or without the neck, when nothing else holds the screen) the screen is
+    # joined down onto the foot; with them it is left on its neck
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import join_parts
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.3, -1.5, 0.05), (0.0, 0.0, 0.05))
+    foot = box("foot", (0, 0, 0.01), (0.23, 0.18, 0.02), object="monitor")
+    neck = box("neck", (0, 0.03, 0.17), (0.04, 0.03, 0.3), object="monitor")
+    screen = box("screen", (0, 0.005, 0.26), (0.55, 0.02, 0.36), object="monitor")
+    wall = box("wall", (0, 1.0, 0.5), (3.0, 0.1, 2.0))
+    views = [DepthView(_depth_of_boxes([foot, neck, screen, wall], T, intr), intr, T)]
+    arr = Arrangement((foot, neck, screen), (ground(),))
+    assert join_parts(arr)[1] == ["foot+screen"]
+    out, joined = join_parts(arr, views=views)
+    assert joined == [] and out.cuboid("screen") is screen
+    alone = Arrangement((foot, screen), (ground(),))
+    out, joined = join_parts(alone, views=views)
+    assert joined == ["foot+screen"]
+    assert out.cuboid("screen").center[2] - out.cuboid("screen").size[2] / 2 == pytest.approx(0.02)
