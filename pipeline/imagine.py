@@ -398,8 +398,10 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
     :data:`JOIN_TRIM_MAX_SHARE` of it.  With ``views``, two parts already held together
     through their object's other parts (a screen on its neck on its foot) are not joined
     through space a view saw empty (:func:`pipeline.extend.prune_by_visibility`'s test);
-    parts nothing else holds together are joined as before.  Smallest added volume
-    first; returns the arrangement and ``"a+b"`` for each pair joined.
+    parts nothing else holds together are joined as before.  Two parts that no single
+    extension joins may be joined across a corner by two short ones
+    (:func:`_corner_joins`: a desk's panel just past the end of its top).  Smallest
+    added volume first; returns the arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
     from .search import short_join
@@ -412,8 +414,13 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
         K = len(arr.cuboids)
         trials = []
         held = _same_object_groups(arr) if views else {}
+        reached = set()  # pairs that touch or that one extension joins
         for e in pair_edges(arr, max_ext, same_object=True):
-            if not e.same_object or e.touching or isinstance(e.b, str):
+            if not e.same_object or isinstance(e.b, str):
+                continue
+            if e.touching or any(short_join(arr, o) for o in e.options):
+                reached.add((min(e.a, e.b), max(e.a, e.b)))
+            if e.touching:
                 continue
             # parts already held together through their object's other parts (a screen
             # on its neck on its foot) do not grow through space the sensor saw empty
@@ -421,6 +428,10 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
             trials += [(o.volume, e.a, e.b, o) for o in e.options
                        if o.extensions and short_join(arr, o)
                        and not (both and _seen_through(arr, o.extensions, views, margin))]
+        for a, b, o in _corner_joins(arr, max_ext, reached):
+            if not (held and held.get(a) == held.get(b)
+                    and _seen_through(arr, o.extensions, views, margin)):
+                trials.append((o.volume, a, b, o))
         touched: set[int] = set()  # boxes changed this round: their trials wait
         for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
             grown = {x.box for x in o.extensions}
@@ -470,6 +481,80 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
         if not touched:
             break
     return arr, joined
+
+
+def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
+    """Joins of two parts of one object apart across a corner: ``(a, b, option)``.
+
+    A part that sits just beyond the end of another and a little off its face (a desk's
+    side panel 2 mm past the end of a top shrunk by noise and 6 cm below it; a chair's
+    back just behind the seat's rear edge and just above it) meets it by no single
+    extension: one box's face reaches past the other's far side (the top over the whole
+    panel), then the other's face reaches it (the panel up to the top).  Both must be
+    short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
+    touch.  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
+    """
+    from .contacts import candidate_pairs
+    from .extend import Extension, Option
+    from .model import box_corners
+    from .search import SHORT_JOIN
+
+    K = len(arr.cuboids)
+    if K < 2:
+        return []
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    ii, jj = candidate_pairs(C, R, S, max_ext)
+    corners = box_corners(C, R, S)
+    out = []
+    for i, j in zip(ii.tolist(), jj.tolist()):
+        ci, cj = arr.cuboids[i], arr.cuboids[j]
+        if ci.object is None or ci.object != cj.object or (i, j) in skip:
+            continue
+        tol = float(pair_tolerance(S[i], S[j]))
+        best = None
+        for a, b in ((i, j), (j, i)):
+            for axis in range(3):
+                u = R[a][:, axis]
+                for side in (0, 1):
+                    sgn = 1.0 if side else -1.0
+                    face = sgn * (C[a] @ u) + S[a, axis] / 2
+                    proj = sgn * (corners[b] @ u) - face
+                    near, far = float(proj.min()), float(proj.max())
+                    if near < -tol or far <= tol or far > SHORT_JOIN * S[a, axis]:
+                        continue
+                    x1 = Extension(a, axis, side, far)
+                    grown = _grown(arr.cuboids[a], x1)
+                    # the other box reaches the grown one through the face nearest it
+                    for axis2 in range(3):
+                        v = R[b][:, axis2]
+                        for side2 in (0, 1):
+                            sgn2 = 1.0 if side2 else -1.0
+                            face2 = sgn2 * (C[b] @ v) + S[b, axis2] / 2
+                            gap = float((sgn2 * (grown.corners() @ v) - face2).min())
+                            if gap <= tol or gap > SHORT_JOIN * S[b, axis2]:
+                                continue
+                            x2 = Extension(b, axis2, side2, gap)
+                            other = _grown(arr.cuboids[b], x2)
+                            sep, _, _ = sat_separation(
+                                grown.center[None], grown.rotation[None], grown.size[None] / 2,
+                                other.center[None], other.rotation[None], other.size[None] / 2,
+                                np.array([tol]))
+                            if abs(float(sep[0])) > tol:
+                                continue
+                            vol = x1.volume(S) + x2.volume(S)
+                            if best is None or vol < best.volume:
+                                best = Option("fixed", (x1, x2), vol)
+        if best is not None:
+            out.append((i, j, best))
+    return out
+
+
+def _grown(c: Cuboid, x) -> Cuboid:
+    """``c`` with extension ``x`` applied (its face pushed out by ``x.length``)."""
+    u = c.rotation[:, x.axis] * (1.0 if x.side else -1.0)
+    size = c.size.copy()
+    size[x.axis] += x.length
+    return c.with_(center=c.center + u * x.length / 2, size=size)
 
 
 def _same_object_groups(arr: Arrangement) -> dict[int, int]:
