@@ -66,16 +66,101 @@ ALIGN_MAX_DEG = 15.0
 OBJECT_YAW_MAX_DEG = 30.0
 
 
+#: An upright box's yaw is fitted to the depth views within this many degrees either
+#: side of its own (:func:`fit_yaws`), in steps of :data:`YAW_FIT_STEP_DEG` ...
+YAW_FIT_MAX_DEG = 20.0
+YAW_FIT_STEP_DEG = 1.0
+#: ... and the box turns only when the turned box holds this many times the observed
+#: points it held as it was, and at least :data:`YAW_FIT_MIN_POINTS` more.
+YAW_FIT_GAIN = 1.15
+YAW_FIT_MIN_POINTS = 50
+#: Pixel stride of the observed points used (every n-th row and column).
+YAW_FIT_STRIDE = 2
+
+
+def observed_points(views: list[DepthView], stride: int = YAW_FIT_STRIDE
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """World points of every ``stride``-th pixel of the views and a distance tolerance
+    per point (twice the sensor's axial noise at its depth, at least a centimetre)."""
+    from .camera import backproject, transform
+
+    pts, tol = [np.zeros((0, 3))], [np.zeros(0)]
+    for v in views:
+        d = np.zeros_like(np.asarray(v.depth, float))
+        d[::stride, ::stride] = np.asarray(v.depth, float)[::stride, ::stride]
+        p, _ = backproject(d, v.intrinsics)
+        tol.append(np.maximum(0.01, 2 * depth_noise(p[:, 2])))
+        pts.append(transform(np.asarray(v.T_world_cam, float), p))
+    return np.concatenate(pts), np.concatenate(tol)
+
+
+def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_MAX_DEG,
+             step_deg: float = YAW_FIT_STEP_DEG, gain: float = YAW_FIT_GAIN,
+             min_points: int = YAW_FIT_MIN_POINTS) -> tuple[Arrangement, list[str]]:
+    """Turn upright boxes about the vertical through their centres to fit what was seen.
+
+    An initial box can come with a yaw that is off (a box fitted to a few points, or
+    initial cuboids from elsewhere): a shelf's board turned by 15 degrees about its own
+    centre pokes 10 cm out of the shelf at one end and lets the books at the other fall
+    through.  The observed points (every :data:`YAW_FIT_STRIDE`-th pixel of every view)
+    that lie in a box, grown by the sensor noise, are counted at yaws within
+    ``max_deg`` of its own; a box that holds ``gain`` times as many (and ``min_points``
+    more) at another yaw takes the best one.  Boxes marked ``slanted`` or not upright
+    are left alone.  Returns the arrangement and the ids turned.
+    """
+    from scipy.spatial import cKDTree
+
+    from .model import rotation_about_axis
+
+    if not views:
+        return arr, []
+    pts, tol = observed_points(views)
+    if not len(pts):
+        return arr, []
+    tree = cKDTree(pts)
+    pad = float(tol.max())
+    offsets = np.radians(np.arange(-max_deg, max_deg + 1e-9, step_deg))
+    zero = int(np.argmin(np.abs(offsets)))
+    cos, sin = np.cos(offsets), np.sin(offsets)
+    cubs = list(arr.cuboids)
+    turned = []
+    for i, c in enumerate(cubs):
+        if c.extra.get("slanted") or abs(c.rotation[2]).max() < 1 - 1e-9:
+            continue
+        near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
+        if len(near) < min_points:
+            continue
+        d = pts[near] - c.center
+        t = tol[near]
+        lim = c.size / 2 + t[:, None]
+        inside = np.zeros(len(offsets), int)
+        for k in range(len(offsets)):
+            # the box turned by +a about z holds the points turned by -a
+            q = np.stack([cos[k] * d[:, 0] + sin[k] * d[:, 1],
+                          -sin[k] * d[:, 0] + cos[k] * d[:, 1], d[:, 2]], axis=1) @ c.rotation
+            inside[k] = int(np.count_nonzero(np.all(np.abs(q) <= lim, axis=1)))
+        # the points held within the noise make a plateau of yaws: take its middle
+        top = np.flatnonzero(inside >= inside.max() - max(1, 0.005 * inside.max()))
+        best = int(top[len(top) // 2])
+        if inside[best] >= gain * inside[zero] and inside[best] - inside[zero] >= min_points:
+            cubs[i] = c.with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], offsets[best])
+                              @ c.rotation)
+            turned.append(c.id)
+    return arr.with_(cuboids=tuple(cubs)), turned
+
+
 def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
-                yaw_deg: float = OBJECT_YAW_MAX_DEG) -> tuple[Arrangement, int]:
+                yaw_deg: float = OBJECT_YAW_MAX_DEG,
+                views: list[DepthView] | None = None) -> tuple[Arrangement, int]:
     """Undo small fitting errors in orientation: gravity and an object's own axes.
 
     A box whose axis nearest the vertical is off by at most ``max_deg`` is turned about
     its centre to stand upright (furniture and boxes stand; leaning parts are fitted as
-    ``slanted`` and left alone), and the parts of one object whose yaws (modulo 90
-    degrees) lie within ``yaw_deg`` of the object's volume-weighted mean yaw take that
-    yaw: a chair's legs and seat share one frame.  Returns the arrangement and the
-    number of boxes turned.
+    ``slanted`` and left alone); with ``views``, upright boxes then take the yaw that
+    fits the observed points best (:func:`fit_yaws`); and the parts of one object whose
+    yaws (modulo 90 degrees) lie within ``yaw_deg`` of the object's volume-weighted mean
+    yaw take that yaw: a chair's legs and seat share one frame.  Returns the arrangement
+    and the number of boxes turned.
     """
     from .model import rotation_about_axis
 
@@ -92,6 +177,10 @@ def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
             R = rotation_about_axis(np.cross(a, [0.0, 0.0, 1.0]), tilt) @ c.rotation
             cubs[i] = c.with_(rotation=R)
             turned.add(i)
+    if views:
+        fitted, ids = fit_yaws(arr.with_(cuboids=tuple(cubs)), views)
+        cubs = list(fitted.cuboids)
+        turned |= {arr.index[k] for k in ids}
     groups: dict[str, list[int]] = {}
     for i, c in enumerate(cubs):
         if c.object is not None and not c.extra.get("slanted"):
@@ -215,8 +304,10 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     view saw the added space empty and no other box or support is entered.  A part of an
     object with other parts goes no deeper than they span together along that axis (a
     shelf's bottom board, seen from the front edge, as deep as its side panels and
-    other boards, not as deep as it is wide).  Returns the arrangement and the ids
-    deepened.
+    other boards, not as deep as it is wide), and no further than they reach behind it
+    (a chair's back, seen face-on on the rear of its seat, to the seat's rear edge: as
+    deep as the chair, it would hang 40 cm out behind it).  Returns the arrangement and
+    the ids deepened.
     """
     from .extend import FREE_FRACTION_MAX, Extension, slab_samples, visible_free_fraction
 
@@ -248,7 +339,8 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
                     continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            target = min(width, _object_depth(arr, c, axis))
+            target = min(width, _object_depth(arr, c, axis),
+                         _object_reach(arr, c, u) + float(c.size[axis]) / 2)
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break
@@ -310,7 +402,8 @@ JOIN_TRIM_REL = 0.1
 JOIN_TRIM_MAX_SHARE = 0.5
 
 
-def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, list[str]]:
+def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | None = None,
+               margin: float = 0.0) -> tuple[Arrangement, list[str]]:
     """Extend parts of one object to meet where a short extension does, trimming the
     noisy edge of another object's box that is in the way.
 
@@ -322,8 +415,13 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     is applied when every box it enters belongs to another object
     and gives way by at most :data:`JOIN_TRIM_ABS` or :data:`JOIN_TRIM_REL` of its extent
     (the face that reaches least far in), and never by more than
-    :data:`JOIN_TRIM_MAX_SHARE` of it.  Smallest added volume first; returns the
-    arrangement and ``"a+b"`` for each pair joined.
+    :data:`JOIN_TRIM_MAX_SHARE` of it.  With ``views``, two parts already held together
+    through their object's other parts (a screen on its neck on its foot) are not joined
+    through space a view saw empty (:func:`pipeline.extend.prune_by_visibility`'s test);
+    parts nothing else holds together are joined as before.  Two parts that no single
+    extension joins may be joined across a corner by two short ones
+    (:func:`_corner_joins`: a desk's panel just past the end of its top).  Smallest
+    added volume first; returns the arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
     from .search import short_join
@@ -335,11 +433,25 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     for _ in range(max_rounds):
         K = len(arr.cuboids)
         trials = []
+        held = _same_object_groups(arr) if views else {}
+        reached = set()  # pairs that touch or that one extension joins
         for e in pair_edges(arr, max_ext, same_object=True):
-            if not e.same_object or e.touching or isinstance(e.b, str):
+            if not e.same_object or isinstance(e.b, str):
                 continue
+            if e.touching or any(short_join(arr, o) for o in e.options):
+                reached.add((min(e.a, e.b), max(e.a, e.b)))
+            if e.touching:
+                continue
+            # parts already held together through their object's other parts (a screen
+            # on its neck on its foot) do not grow through space the sensor saw empty
+            both = held and held.get(e.a) == held.get(e.b)
             trials += [(o.volume, e.a, e.b, o) for o in e.options
-                       if o.extensions and short_join(arr, o)]
+                       if o.extensions and short_join(arr, o)
+                       and not (both and _seen_through(arr, o.extensions, views, margin))]
+        for a, b, o in _corner_joins(arr, max_ext, reached):
+            if not (held and held.get(a) == held.get(b)
+                    and _seen_through(arr, o.extensions, views, margin)):
+                trials.append((o.volume, a, b, o))
         touched: set[int] = set()  # boxes changed this round: their trials wait
         for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
             grown = {x.box for x in o.extensions}
@@ -391,6 +503,111 @@ def join_parts(arr: Arrangement, max_rounds: int = 64) -> tuple[Arrangement, lis
     return arr, joined
 
 
+def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
+    """Joins of two parts of one object apart across a corner: ``(a, b, option)``.
+
+    A part that sits just beyond the end of another and a little off its face (a desk's
+    side panel 2 mm past the end of a top shrunk by noise and 6 cm below it; a chair's
+    back just behind the seat's rear edge and just above it) meets it by no single
+    extension: one box's face reaches past the other's far side (the top over the whole
+    panel), then the other's face reaches it (the panel up to the top).  Both must be
+    short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
+    touch.  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
+    """
+    from .contacts import candidate_pairs
+    from .extend import Extension, Option
+    from .model import box_corners
+    from .search import SHORT_JOIN
+
+    K = len(arr.cuboids)
+    if K < 2:
+        return []
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    ii, jj = candidate_pairs(C, R, S, max_ext)
+    corners = box_corners(C, R, S)
+    out = []
+    for i, j in zip(ii.tolist(), jj.tolist()):
+        ci, cj = arr.cuboids[i], arr.cuboids[j]
+        if ci.object is None or ci.object != cj.object or (i, j) in skip:
+            continue
+        tol = float(pair_tolerance(S[i], S[j]))
+        best = None
+        for a, b in ((i, j), (j, i)):
+            for axis in range(3):
+                u = R[a][:, axis]
+                for side in (0, 1):
+                    sgn = 1.0 if side else -1.0
+                    face = sgn * (C[a] @ u) + S[a, axis] / 2
+                    proj = sgn * (corners[b] @ u) - face
+                    near, far = float(proj.min()), float(proj.max())
+                    if near < -tol or far <= tol or far > SHORT_JOIN * S[a, axis]:
+                        continue
+                    x1 = Extension(a, axis, side, far)
+                    grown = _grown(arr.cuboids[a], x1)
+                    # the other box reaches the grown one through the face nearest it
+                    for axis2 in range(3):
+                        v = R[b][:, axis2]
+                        for side2 in (0, 1):
+                            sgn2 = 1.0 if side2 else -1.0
+                            face2 = sgn2 * (C[b] @ v) + S[b, axis2] / 2
+                            gap = float((sgn2 * (grown.corners() @ v) - face2).min())
+                            if gap <= tol or gap > SHORT_JOIN * S[b, axis2]:
+                                continue
+                            x2 = Extension(b, axis2, side2, gap)
+                            other = _grown(arr.cuboids[b], x2)
+                            sep, _, _ = sat_separation(
+                                grown.center[None], grown.rotation[None], grown.size[None] / 2,
+                                other.center[None], other.rotation[None], other.size[None] / 2,
+                                np.array([tol]))
+                            if abs(float(sep[0])) > tol:
+                                continue
+                            vol = x1.volume(S) + x2.volume(S)
+                            if best is None or vol < best.volume:
+                                best = Option("fixed", (x1, x2), vol)
+        if best is not None:
+            out.append((i, j, best))
+    return out
+
+
+def _grown(c: Cuboid, x) -> Cuboid:
+    """``c`` with extension ``x`` applied (its face pushed out by ``x.length``)."""
+    u = c.rotation[:, x.axis] * (1.0 if x.side else -1.0)
+    size = c.size.copy()
+    size[x.axis] += x.length
+    return c.with_(center=c.center + u * x.length / 2, size=size)
+
+
+def _same_object_groups(arr: Arrangement) -> dict[int, int]:
+    """Box index -> a label shared by the parts of one object that touch, directly or
+    through its other parts."""
+    parent = list(range(len(arr.cuboids)))
+
+    def find(x: int) -> int:
+        while parent[x] != x:
+            parent[x] = parent[parent[x]]
+            x = parent[x]
+        return x
+
+    idx = arr.index
+    for a, b in find_contacts(arr).pairs:
+        ia, ib = idx.get(a), idx.get(b)
+        if (ia is not None and ib is not None and arr.cuboids[ia].object is not None
+                and arr.cuboids[ia].object == arr.cuboids[ib].object):
+            parent[find(ia)] = find(ib)
+    return {k: find(k) for k in range(len(arr.cuboids)) if arr.cuboids[k].object is not None}
+
+
+def _seen_through(arr: Arrangement, extensions, views: list[DepthView] | None,
+                  margin: float) -> bool:
+    """Whether a view saw empty some slab the ``extensions`` would add (as
+    :func:`pipeline.extend.prune_by_visibility` judges a candidate)."""
+    from .extend import FREE_FRACTION_MAX, slab_samples, visible_free_fraction
+
+    return bool(views) and any(
+        visible_free_fraction(slab_samples(arr, x), views, margin) > FREE_FRACTION_MAX
+        for x in extensions)
+
+
 def _near(arr: Arrangement, ids: set[int], pad: float = 0.01) -> list[int]:
     """Indices of the boxes whose world bounds come within ``pad`` of those of the boxes
     ``ids`` (themselves included), in order."""
@@ -421,6 +638,19 @@ def _object_depth(arr: Arrangement, c: Cuboid, axis: int) -> float:
         return float("inf")
     proj = np.concatenate(proj)
     return float(proj.max() - proj.min())
+
+
+def _object_reach(arr: Arrangement, c: Cuboid, u: np.ndarray) -> float:
+    """How far the other parts of ``c``'s object reach beyond ``c``'s centre along the
+    unit vector ``u`` (inf when it has none): a chair's back, seen face-on at the rear
+    of its seat, has the seat's rear edge a few centimetres behind it, not the seat's
+    depth."""
+    if c.object is None:
+        return float("inf")
+    proj = [o.corners() @ u for o in arr.cuboids if o.object == c.object and o.id != c.id]
+    if not proj:
+        return float("inf")
+    return float(np.concatenate(proj).max() - c.center @ u)
 
 
 def _vertical_axis(c: Cuboid) -> int | None:
@@ -1167,7 +1397,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     arr = arr.with_(cuboids=tuple(
         c if c.observed is not None else c.with_(observed=ObservedBox(c.center, c.size))
         for c in arr.cuboids))
-    arr, aligned = align_boxes(arr)
+    arr, aligned = align_boxes(arr, views=views)
     arr, repaired = repair_overlaps(arr)
     timings["repair"] = time.perf_counter() - t
 
@@ -1177,7 +1407,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         scale = arr.scale_length()
         margin = 0.05 * scale
     arr, deepened = deepen_thin_boxes(arr, views, margin)
-    arr, joined_parts = join_parts(arr)
+    arr, joined_parts = join_parts(arr, views=views, margin=margin)
     hallucinated = []
     if symmetry:
         arr, hallucinated = hallucinate(arr, views, margin)

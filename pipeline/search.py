@@ -25,7 +25,11 @@ leaves only replace it when strictly cheaper; a node whose decided edges already
 as much as the best leaf is cut.  A greedy solution comes first (:meth:`_Group.greedy`:
 relax fixed to touch keeping extensions, then shed volume; then single-edge moves to
 cheaper options), so the bound prunes hard from the start; groups of up to
-``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  Independent groups
+``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  When the
+siblings step (:meth:`_Group.siblings`) gives hanging parts their siblings' support,
+single-edge moves to cheaper options are tried once more, keeping what that step
+would give back (a chair's back the greedy left stretched to the floor while two legs
+hung is released once all four legs stand).  Independent groups
 (cuboids that no edge connects) are searched separately, stability results are cached per assignment, and contact
 geometry per set of extensions (type changes reuse it).
 
@@ -372,7 +376,14 @@ class _Group:
         best[0], best[1], best[2] = greedy, self.cost(greedy), self.evaluate(greedy)[1]
         if n <= EXACT_MAX_EDGES:  # prove (or improve on) the greedy answer exhaustively
             dive(0, list(root))
-        best[0] = self.siblings(best[0], deadline)
+        alike = self.siblings(best[0], deadline)
+        if alike != best[0]:
+            # the parts given their siblings' support may make an extension the greedy
+            # kept unnecessary (a chair's back stretched to the floor while two legs
+            # hung): cheaper single-edge moves that the siblings step would not undo
+            alike = self.improve(alike, deadline,
+                                 keep=lambda a: self.siblings(a, deadline) == a)
+        best[0] = alike
         best[2] = self.evaluate(best[0])[1]
         return best[0], True, best[2]
 
@@ -548,8 +559,10 @@ class _Group:
                 return False
         return bool(option.extensions)
 
-    def improve(self, assignment: tuple[int, ...], deadline: float) -> tuple[int, ...]:
-        """Single-edge moves to cheaper options while any lowers the cost (local optimum)."""
+    def improve(self, assignment: tuple[int, ...], deadline: float,
+                keep=None) -> tuple[int, ...]:
+        """Single-edge moves to cheaper options while any lowers the cost (local optimum);
+        ``keep``: a further test a stable move must pass."""
         current = tuple(assignment)
         cost = self.cost(current)
         changed = True
@@ -567,7 +580,7 @@ class _Group:
                         continue
                     self.stats.nodes += 1
                     ok, _ = self.evaluate(trial)
-                    if ok:
+                    if ok and (keep is None or keep(trial)):
                         current, cost, changed = trial, c, True
                         break
                 if time.perf_counter() > deadline:

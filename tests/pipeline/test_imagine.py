@@ -556,3 +556,109 @@ def test_a_point_beside_a_part_thinner_than_a_pixel_is_not_seen_empty():
     assert visible_free_fraction(point(1), [view]) == 0.0
     assert visible_free_fraction(point(3), [view]) == 1.0
     assert np.allclose(transform(invert(T), point(3)), point(3))
+
+
+def test_fit_yaws_turns_a_board_back_onto_what_the_camera_saw():
+    # a shelf's board and a box on the floor, seen from the front and above; the board
+    # comes with its yaw 12 degrees off (about its own centre: its ends 8 cm out of
+    # place), the box as seen.  The board turns back to within the 1-degree grid; the
+    # box, which fits, and a box marked slanted stay as they are
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import align_boxes, fit_yaws
+    from pipeline.model import rotation_about_z
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.4, -2.2, 1.4), (0.0, 0.0, 0.4))
+    yaw = 0.3
+    board = box("board", (0, 0, 0.5), (0.8, 0.3, 0.03), rotation=rotation_about_z(yaw),
+                object="shelf")
+    crate = box("crate", (0.7, 0.3, 0.15), (0.3, 0.25, 0.3), rotation=rotation_about_z(-0.2))
+    views = [DepthView(_depth_of_boxes([board, crate], T, intr), intr, T)]
+    off = board.with_(rotation=rotation_about_z(yaw + np.radians(12)))
+    out, ids = fit_yaws(Arrangement((off, crate), (ground(),)), views)
+    assert ids == ["board"]
+    R = out.cuboid("board").rotation
+    assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
+    np.testing.assert_array_equal(out.cuboid("board").center, board.center)
+    assert out.cuboid("crate") is crate
+    slanted = off.with_(extra={"slanted": True})
+    out, ids = fit_yaws(Arrangement((slanted, crate), (ground(),)), views)
+    assert ids == [] and out.cuboid("board") is slanted
+    # align_boxes with the views does the same before sharing the object's yaw
+    out, turned = align_boxes(Arrangement((off, crate), (ground(),)), views=views)
+    assert turned == 1
+    R = out.cuboid("board").rotation
+    assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
+
+
+def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches():
+    # the back stands on the rear 3.5 cm of the seat; the camera in front sees only its
+    # front face, fitted as a 7 mm slab.  Deepened up to its width (as a leg would be)
+    # or its object's depth, it would reach 40 cm behind the chair and tip it over
+    # backwards; it goes as far as the seat's rear edge, the object's far end there
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import deepen_thin_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 1.2), (0.0, 0.0, 0.5))
+    seat = box("seat", (0, 0, 0.43), (0.45, 0.45, 0.04), object="chair")
+    back = box("back", (0, 0.2075, 0.675), (0.45, 0.035, 0.45), object="chair")
+    views = [DepthView(_depth_of_boxes([seat, back], T, intr), intr, T)]
+    slab = box("back", (0, 0.1935, 0.675), (0.45, 0.007, 0.45), object="chair")
+    out, ids = deepen_thin_boxes(Arrangement((seat, slab), (ground(),)), views)
+    assert ids == ["back"]
+    b = out.cuboid("back")
+    assert b.size[1] == pytest.approx(0.035, abs=1e-9)
+    assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
+
+
+def test_parts_held_through_their_object_do_not_join_through_space_seen_empty():
+    # a monitor: the screen hangs on the neck, the neck stands on the foot, and the
+    # camera sees the wall through the 6 cm between the screen and the foot.  Without
+    # the views (or without the neck, when nothing else holds the screen) the screen is
+    # joined down onto the foot; with them it is left on its neck
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import join_parts
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.3, -1.5, 0.05), (0.0, 0.0, 0.05))
+    foot = box("foot", (0, 0, 0.01), (0.23, 0.18, 0.02), object="monitor")
+    neck = box("neck", (0, 0.03, 0.17), (0.04, 0.03, 0.3), object="monitor")
+    screen = box("screen", (0, 0.005, 0.26), (0.55, 0.02, 0.36), object="monitor")
+    wall = box("wall", (0, 1.0, 0.5), (3.0, 0.1, 2.0))
+    views = [DepthView(_depth_of_boxes([foot, neck, screen, wall], T, intr), intr, T)]
+    arr = Arrangement((foot, neck, screen), (ground(),))
+    assert join_parts(arr)[1] == ["foot+screen"]
+    out, joined = join_parts(arr, views=views)
+    assert joined == [] and out.cuboid("screen") is screen
+    alone = Arrangement((foot, screen), (ground(),))
+    out, joined = join_parts(alone, views=views)
+    assert joined == ["foot+screen"]
+    assert out.cuboid("screen").center[2] - out.cuboid("screen").size[2] / 2 == pytest.approx(0.02)
+
+
+def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
+    # a desk's side panel stands 2 mm past the end of the top (fitted short) and 5.5 cm
+    # below it: neither growing the panel up nor the top down makes them meet.  One box
+    # reaches past the other (the panel up along the top's end, 8.5 cm: less volume
+    # than the top over the panel), the other meets it (the top 2 mm to the panel);
+    # a panel of another object there is left alone
+    from pipeline.imagine import join_parts
+
+    top = box("top", (0, 0, 0.73), (1.2, 0.6, 0.03), object="desk")
+    panel = box("panel", (-0.607, 0, 0.33), (0.01, 0.5, 0.66), object="desk")
+    out, joined = join_parts(Arrangement((top, panel), (ground(),)))
+    assert joined == ["top+panel"]
+    t, p = out.cuboid("top"), out.cuboid("panel")
+    assert t.center[0] - t.size[0] / 2 == pytest.approx(-0.602, abs=1e-9)
+    assert t.center[0] + t.size[0] / 2 == pytest.approx(0.6, abs=1e-9)
+    assert p.center[2] + p.size[2] / 2 == pytest.approx(0.745, abs=1e-9)
+    assert p.center[2] - p.size[2] / 2 == pytest.approx(0.0, abs=1e-9)
+    cs = find_contacts(out)
+    assert ("top", "panel") in cs.pairs and not cs.penetrations
+    other = panel.with_(object="cabinet")
+    out, joined = join_parts(Arrangement((top, other), (ground(),)))
+    assert joined == [] and out.cuboid("panel") is other

@@ -319,3 +319,28 @@ def test_a_table_seen_with_two_legs_gets_the_other_two_and_stands_on_four():
     assert res.arrangement.stability.stable and res.report["fixed_chosen"] == 0
     t = _types(res.arrangement)
     assert sum(v == "touch" for k, v in t.items() if "ground" in k) == 4
+
+
+def test_a_chair_back_is_not_left_stretched_to_the_floor_once_all_legs_stand():
+    # a chair as fitted (two legs hallucinated): the back stands beside the seat's rear
+    # edge, fused to it.  The greedy pass keeps the back stretched to the floor and drops
+    # the leg extensions the equilibrium did not load; the siblings step gives all four
+    # legs the floor, after which the back's 45 cm to the floor holds nothing up and goes
+    def b(name, c, s):
+        return box(name, c, s, object="chair")
+
+    arr = Arrangement((
+        b("seat", (0.0, 0.0, 0.4355), (0.3915, 0.4587, 0.0328)),
+        b("leg1", (0.155, -0.1854, 0.2316), (0.0497, 0.0497, 0.375)),
+        b("leg2", (0.1627, 0.1806, 0.2248), (0.0484, 0.0484, 0.3886)),
+        b("back", (-0.1995, 0.003, 0.6834), (0.0075, 0.4492, 0.4696)),
+        b("leg3", (-0.155, 0.1854, 0.2316), (0.0497, 0.0497, 0.375)),
+        b("leg4", (-0.1627, -0.1806, 0.2248), (0.0484, 0.0484, 0.3886)),
+    ), (ground(),))
+    res = search(arr, candidate_edges(arr), budget=10)
+    assert res.stable
+    types = _types(res.arrangement)
+    assert ("back", "ground") not in types
+    assert all(types.get(("ground", f"leg{k}")) == "touch" for k in (1, 2, 3, 4))
+    back = res.arrangement.cuboid("back")
+    np.testing.assert_allclose(back.size, [0.0075, 0.4492, 0.4696])
