@@ -222,8 +222,10 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     spine points that reaches into a shelf's side panel (tens of thousands of points) is
     narrowed, where cutting the smallest share would have cut the panel's bottom off and
     stood it on the book (the panel fused to the board under the book then clamps the
-    book, which only friction from that clamp holds: both engines drop it).  A box
-    reaching below a support plane loses the part below it.
+    book, which only friction from that clamp holds: both engines drop it).  Such a weak
+    box turned more than :data:`SQUARE_MIN_DEG` against the strong one first takes its
+    axes (:func:`_square_to`).  A box reaching below a support plane loses the part
+    below it.
     """
     repaired = 0
     for _ in range(max_rounds):
@@ -259,8 +261,13 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                     pi, pj = _points(ci), _points(cj)
                     if pj >= EVIDENCE_RATIO * pi:
                         ri, rj = 0.0, 1.0
+                        ci = cubs[i] = _square_to(ci, cj)
                     elif pi >= EVIDENCE_RATIO * pj:
                         ri, rj = 1.0, 0.0
+                        cj = cubs[j] = _square_to(cj, ci)
+                    if not _penetrating(ci, cj):
+                        repaired += 1
+                        continue
                 if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
                     if ri <= rj:
                         cubs[i] = _shrink_against(ci, cj, by_share=by_share)
@@ -735,6 +742,41 @@ def _merge(a: Cuboid, b: Cuboid) -> Cuboid:
 #: overlapping face, one fitted to at least this many times the other's points keeps the
 #: disputed space (:func:`repair_overlaps`).
 EVIDENCE_RATIO = 4.0
+
+
+#: A weak box askew to the box it reaches into by more than this many degrees about the
+#: vertical first takes that box's axes (:func:`_square_to`).
+SQUARE_MIN_DEG = 10.0
+
+
+def _square_to(c: Cuboid, other: Cuboid, min_deg: float = SQUARE_MIN_DEG) -> Cuboid:
+    """``c`` turned about the vertical through its centre onto the axes of ``other``
+    (both upright, the turn of at most 45 degrees that does it) when they are more than
+    ``min_deg`` apart and ``c`` would clear ``other`` sideways; otherwise ``c`` (a book
+    lying askew on another is cut from below, where its yaw does not matter).
+
+    A box fitted to a few dozen points can come out turned by 40 degrees (a book seen
+    by its spine next to a shelf's side panel).  Cut against the panel's faces it never
+    clears it: every cut is capped at half the box, and ten rounds leave a sliver of a
+    few millimetres that then blocks the panel from reaching the floor.  Turned onto the
+    panel's axes first, one cut (or none) clears it.
+    """
+    from .model import rotation_about_axis
+
+    up = np.array([0.0, 0.0, 1.0])
+    if (c.extra.get("slanted") or abs(c.rotation[2]).max() < 1 - 1e-9
+            or abs(other.rotation[2]).max() < 1 - 1e-9):
+        return c
+    ax_c = next(k for k in range(3) if abs(c.rotation[2, k]) < 0.5)
+    ax_o = next(k for k in range(3) if abs(other.rotation[2, k]) < 0.5)
+    a = np.arctan2(c.rotation[1, ax_c], c.rotation[0, ax_c])
+    b = np.arctan2(other.rotation[1, ax_o], other.rotation[0, ax_o])
+    turn = (b - a + np.pi / 4) % (np.pi / 2) - np.pi / 4
+    face = _overlap_face(c, other, by_share=True)
+    if (abs(np.degrees(turn)) <= min_deg or face is None
+            or abs(c.rotation[2, face[1]]) > 0.5):  # cleared from above or below: no turn
+        return c
+    return c.with_(rotation=rotation_about_axis(up, turn) @ c.rotation)
 
 
 def _points(c: Cuboid) -> float:

@@ -345,6 +345,29 @@ def test_a_book_fitted_askew_gives_way_to_the_panel_fitted_to_far_more_points():
     assert book.size[0] < before.size[0]  # narrowed beside the panel
 
 
+def test_a_book_fitted_far_askew_turns_onto_the_panel_instead_of_shrinking_to_a_sliver():
+    # room-1001 of Table 1: a book fitted to 42 spine points comes out turned by 47
+    # degrees against the side panel (2768 points) it reaches through.  Cut against the
+    # panel's faces, each cut capped at half the book, ten rounds left a 6 x 11 x 27 mm
+    # sliver that blocked the panel from reaching the floor (the shelf then floated)
+    panel = box("panel", (1.571, 0.241, 0.967), (0.006, 0.319, 1.773), yaw=np.radians(4.0),
+                object="shelf").with_(extra={"points": 2768})
+    book = box("book", (1.511, 0.298, 0.231), (0.189, 0.043, 0.235), yaw=np.radians(47.0),
+               object="book").with_(extra={"points": 42})
+    arr = Arrangement((_observed(panel), _observed(book)), (ground(),))
+    out, _ = repair_overlaps(arr)
+    assert not find_contacts(out).penetrations
+    assert out.cuboid("panel") == arr.cuboid("panel")  # the well-seen panel keeps its box
+    b = out.cuboid("book")
+    # on the panel's axes (the 47 degree yaw turned by 43 to 90 = 4 modulo 90)
+    yaw = np.degrees(np.arctan2(b.rotation[1, 0], b.rotation[0, 0]))
+    assert (yaw - 4.0 + 45.0) % 90.0 - 45.0 == pytest.approx(0.0, abs=1e-6)
+    # it keeps its height and most of its volume: one cut, not ten
+    assert b.size[2] == pytest.approx(0.235)
+    assert np.prod(b.size) > 0.6 * np.prod(book.size)
+    assert b.center[2] == pytest.approx(book.center[2])
+
+
 def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     # three books fitted to noisy points (from a shelf scan): two 9 mm deep, overlapping
     # a third in depth.  Clearing through the depth costs each thin one more than its
