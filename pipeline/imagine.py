@@ -228,6 +228,8 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     below it.
     """
     repaired = 0
+    floor = next((float(s.point[2]) for s in arr.supports
+                  if s.id == "ground" and s.normal[2] > 0.99), None)
     for _ in range(max_rounds):
         cs = find_contacts(arr)
         if not cs.penetrations:
@@ -250,7 +252,7 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                 cubs[i], cubs[j] = _merge(ci, cj), None
             elif not _penetrating(ci, cj):
                 continue  # an earlier cut of this round already cleared them
-            elif (rest := _resting_cut(ci, cj)) is not None:
+            elif (rest := _resting_cut(ci, cj, slabs=floor)) is not None:
                 cubs[i], cubs[j] = rest
             else:
                 ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
@@ -666,7 +668,13 @@ def _vertical_axis(c: Cuboid) -> int | None:
     return ax if abs(c.rotation[2, ax]) > 0.99 else None
 
 
-def _resting_cut(a: Cuboid, b: Cuboid) -> tuple[Cuboid, Cuboid] | None:
+#: A box under another is a slab it rests on (:func:`_resting_cut`) when its footprint
+#: is this many times the upper box's and it is at most half as tall.
+SLAB_AREA_RATIO = 4.0
+
+
+def _resting_cut(a: Cuboid, b: Cuboid, slabs: float | None = None
+                 ) -> tuple[Cuboid, Cuboid] | None:
     """Clear the overlap of a box resting on a broader one at the face they share.
 
     When one upright box's bottom lies in the upper three quarters of a broader upright box
@@ -675,21 +683,35 @@ def _resting_cut(a: Cuboid, b: Cuboid) -> tuple[Cuboid, Cuboid] | None:
     overlap is depth noise at the interface they rest on: the upper box's bottom rises
     (by at most half of its height; beyond that the lower box's top drops by half the
     overlap and the upper's bottom rises by the other half).  Cutting the board's end
-    instead shortened it one book at a time until it no longer reached its side panel.  Returns the two boxes ``(a, b)`` after
-    the cut, or None when the pair is not of that kind or cannot be cleared that way.
+    instead shortened it one book at a time until it no longer reached its side panel.
+
+    With ``slabs``, the floor's height (initial boxes, whose overlaps are fitting noise),
+    the lower box may also be a slab: a footprint :data:`SLAB_AREA_RATIO` times the
+    upper's, at most half as tall as the upper box and as half its own narrower side,
+    that the upper box's bottom reaches down to (at most half the slab's height below
+    it, and not down to the floor: a sofa's back stands beside its seat).  A shelf's bottom
+    board 4 m away is fitted several centimetres high and thick, and the books on it,
+    their bottoms as noisy, end at its underside; cutting the board's ends instead let
+    the books reach past it to the floor.  Returns the two boxes ``(a, b)`` after the
+    cut, or None when the pair is not of that kind or cannot be cleared that way.
     """
     ax_a, ax_b = _vertical_axis(a), _vertical_axis(b)
     if ax_a is None or ax_b is None:
         return None
     za, zb = _z_range(a), _z_range(b)
     if za[0] + za[1] < zb[0] + zb[1]:  # a is the lower one
-        r = _resting_cut(b, a)
+        r = _resting_cut(b, a, slabs)
         return None if r is None else (r[1], r[0])
     (lo_u, hi_u), (lo_l, hi_l) = za, zb
     area_u = float(np.prod(np.delete(a.size, ax_a)))
     area_l = float(np.prod(np.delete(b.size, ax_b)))
     h_u, h_l = hi_u - lo_u, hi_l - lo_l
-    if not (area_l >= area_u and h_l <= 1.5 * h_u and lo_l + 0.25 * h_l < lo_u < hi_l < hi_u):
+    slab = slabs is not None and (
+        area_l >= SLAB_AREA_RATIO * area_u and h_l <= 0.5 * h_u
+        and h_l <= 0.5 * np.delete(b.size, ax_b).min() and lo_u > slabs + 0.5 * h_l
+        and lo_l - 0.5 * h_l < lo_u < hi_l < hi_l + 0.25 * h_u < hi_u)
+    if not (slab or (area_l >= area_u and h_l <= 1.5 * h_u
+                     and lo_l + 0.25 * h_l < lo_u < hi_l < hi_u)):
         return None
     tol = float(pair_tolerance(a.size[None], b.size[None])[0])
     cut = hi_l - lo_u + 0.25 * tol

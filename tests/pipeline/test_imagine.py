@@ -368,6 +368,35 @@ def test_a_book_fitted_far_askew_turns_onto_the_panel_instead_of_shrinking_to_a_
     assert b.center[2] == pytest.approx(book.center[2])
 
 
+
+def test_books_ending_at_the_underside_of_a_board_fitted_high_are_lifted_onto_it():
+    # room-1002 of Table 1: a shelf's bottom board 4 m away (266 points) is fitted 9.5 cm
+    # thick and 5 cm high; the books on it (40-80 points), their bottoms as noisy, end at
+    # its underside.  Cutting the board's ends shortened it by 17 cm, book by book, and
+    # the books reached past it to the floor
+    board = box("board", (0.896, 0.305, 0.122), (0.573, 0.308, 0.095), object="shelf")
+    books = [box(f"book{k}", (x, 0.30, 0.195), (0.024, 0.13, 0.246),
+                 object=f"book{k}").with_(extra={"points": 60})
+             for k, x in enumerate((1.00, 1.05, 1.10))]
+    board = board.with_(extra={"points": 266})
+    arr = Arrangement(tuple(_observed(c) for c in (board, *books)), (ground(),))
+    out, n = repair_overlaps(arr)
+    assert n == 3 and not find_contacts(out).penetrations
+    assert out.cuboid("board") == arr.cuboid("board")  # its length and height kept
+    top = board.center[2] + board.size[2] / 2
+    for b in books:
+        z = out.cuboid(b.id).corners()[:, 2]
+        assert z.min() == pytest.approx(top, abs=0.002)  # on the board, not beside it
+        assert z.max() == pytest.approx(b.corners()[:, 2].max())
+    # a box standing beside a slab is no book on it: a sofa's back (bottom on the floor,
+    # like the seat's) reaching into the seat is not lifted onto it
+    from pipeline.imagine import _resting_cut
+
+    seat = box("seat", (0, 0.067, 0.169), (1.498, 0.741, 0.337), object="sofa")
+    back = box("back", (0, 0.369, 0.431), (1.686, 0.142, 0.861), object="sofa")
+    assert _resting_cut(back, seat) is None
+    assert _resting_cut(back, seat, slabs=0.0) is None
+
 def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     # three books fitted to noisy points (from a shelf scan): two 9 mm deep, overlapping
     # a third in depth.  Clearing through the depth costs each thin one more than its
