@@ -86,13 +86,33 @@ def settle_stands(arr, engine: str = "mujoco") -> bool:
     return bool(settle(arr, engine).stable)
 
 
+def unseen_parts(scan_dir: Path, gt) -> list[str]:  # noqa: ANN001 - an Arrangement
+    """Ids of the ground-truth cuboids the scan gave fewer points than the pipeline needs
+    to make a cuboid of an instance (:data:`pipeline.segment.MIN_INSTANCE_POINTS`): parts
+    no view saw, or saw too little of, whose contacts only physics can recover."""
+    from pipeline.segment import MIN_INSTANCE_POINTS
+    from simulate.scan import read_ply
+
+    _, _, inst = read_ply(Path(scan_dir) / "points.ply")
+    counts = np.bincount(inst.astype(np.int64), minlength=len(gt.cuboids) + 1) \
+        if inst is not None else np.zeros(len(gt.cuboids) + 1, np.int64)
+    return [c.id for k, c in enumerate(gt.cuboids) if counts[k + 1] < MIN_INSTANCE_POINTS]
+
+
+def missed_at(rec_false_negatives, parts: list[str]) -> int:  # noqa: ANN001
+    """How many missed true contacts (``(a, b, type)``) touch one of ``parts``."""
+    ids = set(parts)
+    return sum(1 for e in rec_false_negatives if e[0] in ids or e[1] in ids)
+
+
 def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                noise: str = "kinect", budget: float = BUDGET, options: dict | None = None,
                engine: str | None = None, engines: tuple | list | None = None) -> dict:
     """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
 
     Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
-    ``n_gt``/``n_gt_contacts``, ``n_initial`` and :func:`summary_of`; with ``engine``
+    ``n_gt``/``n_gt_contacts``, ``n_initial``, ``unseen`` (:func:`unseen_parts`),
+    ``fn_unseen`` (missed true contacts touching them) and :func:`summary_of`; with ``engine``
     also ``stands`` (the result settled in that engine), with ``engines`` also
     ``stands_in`` (engine -> whether it stands there).
     """
@@ -106,9 +126,14 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
         gt = made.truth.arrangement
         scan, initial, args = initial_from_dir(made.path, budget)
         result = solve(initial, scan, args)
+        unseen = unseen_parts(made.path / "scan", gt)
+    from eval.metrics import score_arrangement
+
     rec = score_record(result.arrangement, gt, initial=initial)
+    fn = score_arrangement(result.arrangement, gt, initial=initial).optimized.false_negatives
     rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
                n_gt_contacts=len(gt.contacts), n_initial=len(initial.cuboids),
+               unseen=unseen, fn_unseen=missed_at(fn, unseen),
                **summary_of(result.arrangement, result.report))
     if engine:
         rec["stands"] = settle_stands(result.arrangement, engine)

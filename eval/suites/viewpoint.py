@@ -4,9 +4,10 @@ Each scene (``--n`` per family, default 1; families :data:`FAMILIES`, quick: sta
 scanned from :data:`VIEWS` single viewpoints (quick: :data:`QUICK_VIEWS`) evenly spread in
 azimuth around it, at :data:`ELEVATION` degrees and :data:`DISTANCE` m (moved back when the
 scene would not fit the image), each with Kinect noise, and run through the pipeline on
-its own.  Per view: typed F1 initial -> optimized, the ground-truth cuboids with no point
-at all in the scan (*wholly occluded*), and how many of the missed true contacts (false
-negatives) touch a wholly occluded cuboid, i.e. failures the scan gave no evidence for
+its own.  Per view: typed F1 initial -> optimized, the ground-truth cuboids the scan saw
+too little of to make a cuboid (*hidden*: :func:`eval.suites._scenes.unseen_parts`,
+fewer points than an instance needs), and how many of the missed true contacts (false
+negatives) touch a hidden cuboid, i.e. failures the scan gave no evidence for
 except through physics.
 
 Outputs: ``viewpoint.md`` / ``.csv`` (one row per view, with a per-scene spread summary),
@@ -34,8 +35,14 @@ def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: fl
     from eval.metrics import score_arrangement
     from eval.run_full import solve
     from eval.suites._common import score_record
-    from eval.suites._scenes import initial_from_dir, make_scene, scratch, summary_of
-    from simulate.scan import read_ply
+    from eval.suites._scenes import (
+        initial_from_dir,
+        make_scene,
+        missed_at,
+        scratch,
+        summary_of,
+        unseen_parts,
+    )
 
     del rng  # the view is fixed; the scan noise is a function of the scene seed
     ranges = {"azimuth": (azimuth, azimuth), "elevation": (ELEVATION, ELEVATION),
@@ -43,18 +50,15 @@ def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: fl
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene", view_ranges=ranges)
         gt = made.truth.arrangement
-        _, _, inst = read_ply(made.path / "scan" / "points.ply")
+        hidden = unseen_parts(made.path / "scan", gt)
         scan, initial, args = initial_from_dir(made.path)
         result = solve(initial, scan, args)
-    seen = set(np.unique(inst[inst > 0]).tolist()) if inst is not None else set()
-    hidden = [c.id for k, c in enumerate(gt.cuboids) if k + 1 not in seen]
     s = score_arrangement(result.arrangement, gt, initial=initial)
     fn = [list(e) for e in s.optimized.false_negatives]
-    fn_hidden = [e for e in fn if e[0] in hidden or e[1] in hidden]
     rec = score_record(result.arrangement, gt, initial=initial)
     rec.update(family=family, seed=int(seed), azimuth=float(azimuth), n_gt=len(gt.cuboids),
                n_initial=len(initial.cuboids), hidden=hidden, false_negatives=fn,
-               fn_hidden=len(fn_hidden), n_fp=len(s.optimized.false_positives),
+               fn_hidden=missed_at(fn, hidden), n_fp=len(s.optimized.false_positives),
                **summary_of(result.arrangement, result.report))
     return rec
 
@@ -94,9 +98,12 @@ def run(args: argparse.Namespace) -> int:
                 fnh = sum(r["fn_hidden"] for _, r in recs)
                 spread.append([fam, seed, len(recs), f"{min(f1s):.1f}", f"{np.median(f1s):.1f}",
                                f"{max(f1s):.1f}", fn, fnh, pct(fnh / fn if fn else float("nan"))])
+    from pipeline.segment import MIN_INSTANCE_POINTS
+
     note = (f"Single Kinect-noised views at elevation {ELEVATION:g} deg, distance {DISTANCE:g} m "
             "(farther if the scene would not fit), azimuths evenly spread.  'hidden': true "
-            "cuboids with no point in the scan.  FN: true contacts the optimized graph missed "
+            f"cuboids with fewer than {MIN_INSTANCE_POINTS} points in the scan (too few to "
+            "make a cuboid of).  FN: true contacts the optimized graph missed "
             "(typed); 'FN at hidden': those touching a hidden cuboid.  F1: typed, percent.  "
             f"{summary.n_ok} views ok, {summary.n_failed} failed.\n" + failure_note(summary))
     md = write_table(out, "viewpoint", ["family", "seed", "azimuth (deg)", "gt cuboids",

@@ -55,6 +55,33 @@ def test_table1_quick(table1_serial: Path) -> None:
     assert rows["stack"]["optimized F1"] == f"{100 * f1:.1f}"
     assert rec["n_gt"] >= 2 and rec["family"] == "stack"
     assert json.loads((out / "command.json").read_text())["suite"] == "table1"
+    # a stack in front of the camera hides none of its boxes: nothing is missed for want
+    # of points, and the reachable F1 is 100
+    unseen = {r["scenes"]: r for r in _rows(out / "table1_unseen.csv")}
+    assert unseen["stack"]["unseen parts"] == "0" and rec["unseen"] == []
+    assert unseen["stack"]["missed at unseen parts"] == "0"
+    assert unseen["stack"]["F1 if only those were missed"] == "100.0"
+    assert unseen["stack"]["optimized F1"] == rows["stack"]["optimized F1"]
+    assert int(unseen["stack"]["true contacts"]) == c["n_gt"]
+    assert int(unseen["stack"]["missed"]) == c["n_gt"] - c["tp"]
+
+
+def test_unseen_parts_are_those_with_fewer_points_than_an_instance_needs(tmp_path: Path) -> None:
+    from eval.suites._scenes import missed_at, unseen_parts
+    from pipeline.segment import MIN_INSTANCE_POINTS
+    from simulate.scan import write_ply
+
+    gt = Arrangement(tuple(box(f"b{k}", (k, 0, 0.5), (0.5, 0.5, 1.0)) for k in range(4)),
+                     (ground(),))
+    # instance k + 1 is cuboid b{k}: b0 just enough points, b1 one short, b2 none, b3 many
+    counts = {1: MIN_INSTANCE_POINTS, 2: MIN_INSTANCE_POINTS - 1, 4: 500}
+    inst = np.concatenate([np.full(n, i, np.uint16) for i, n in counts.items()]
+                          + [np.zeros(7, np.uint16)])  # and points of no cuboid
+    pts = np.random.default_rng(0).random((len(inst), 3))
+    write_ply(tmp_path / "points.ply", pts, instance=inst)
+    assert unseen_parts(tmp_path, gt) == ["b1", "b2"]
+    fn = [("b0", "b1", "touch"), ("b2", "ground", "touch"), ("b0", "b3", "fixed")]
+    assert missed_at(fn, ["b1", "b2"]) == 2 and missed_at(fn, []) == 0
 
 
 def test_table1_parallel_equals_serial(table1_serial: Path, tmp_path: Path) -> None:
