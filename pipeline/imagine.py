@@ -989,7 +989,8 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
     saw empty (the sensor could not have seen the gap), one box's face is pushed to the
     other (the candidate extension of the pair, shortest first); the change is kept when
     nothing interpenetrates and the arrangement still stands; parts of one object that
-    meet so are fused.  Without views (a bare point cloud) nothing is closed.  Returns the arrangement and the ``a|b`` pairs
+    meet so are fused (parts already fused into one rigid body are left as they are: a
+    chair's back fixed to its seat does not grow down to a leg).  Without views (a bare point cloud) nothing is closed.  Returns the arrangement and the ``a|b`` pairs
     closed.
     """
     from .extend import FREE_FRACTION_MAX, pair_edges, slab_samples, visible_free_fraction
@@ -1008,10 +1009,14 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
                 opts.append((o.extensions[0].length, a, b, o.extensions[0]))
     closed: list[str] = []
     grown: set[tuple[str, int, int]] = set()
+    rigid = _components_of(list(final.ids), final.contacts)
     for _length, a, b, x in sorted(opts, key=lambda t: t[:3]):
         cid = final.cuboids[x.box].id
         if (cid, x.axis, x.side) in grown or tuple(sorted((a, b))) in touching:
             continue
+        oa, ob = final.cuboid(a).object, final.cuboid(b).object
+        if oa is not None and oa == ob and rigid[a] == rigid[b]:
+            continue  # parts already one rigid body: a joint between them adds nothing
         if visible_free_fraction(slab_samples(final, x), views, margin) > FREE_FRACTION_MAX / 2:
             continue
         c = final.cuboids[x.box]
@@ -1026,12 +1031,12 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
                 tuple(sorted((a, b))) not in cs.lookup():
             continue
         fixed = [c for c in final.contacts if c.type == "fixed"]
-        oa, ob = final.cuboid(a).object, final.cuboid(b).object
         if oa is not None and oa == ob:  # parts of one object are fused where they meet
             fixed.append(Contact(a, b, "fixed"))
         cand = finalize(trial, fixed, mu=mu, threshold=threshold)
         if cand.stability is not None and cand.stability.stable:
             final, touching = cand, cs.lookup()
+            rigid = _components_of(list(final.ids), final.contacts)
             grown.add((cid, x.axis, x.side))
             closed.append(f"{a}|{b}")
     return final, closed

@@ -576,6 +576,29 @@ def test_a_gap_between_books_that_no_view_saw_into_is_closed():
     assert closed == [] and out is final
 
 
+
+def test_a_hidden_gap_between_parts_already_fused_into_one_body_stays_open():
+    # chair-1003 of Table 1: the back, fixed to the seat, ended 3.5 cm above a leg fixed
+    # to the same seat; closing that hidden gap added a joint the chair does not have.
+    # Here two legs 12 mm apart under one top, all one object fused together
+    from pipeline.imagine import close_hidden_gaps
+    from pipeline.search import finalize
+
+    _, views = _two_books(0.0, 0.012)
+    legs = [box("a", (-0.026, 0, 0.15), (0.04, 0.2, 0.3), object="o"),
+            box("b", (0.026, 0, 0.15), (0.04, 0.2, 0.3), object="o")]
+    top = box("top", (0, 0, 0.31), (0.3, 0.2, 0.02), object="o")
+    glue = [Contact("a", "top", "fixed"), Contact("b", "top", "fixed")]
+    final = finalize(Arrangement((*legs, top), (ground(),)), glue)
+    assert final.stability.stable
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == [] and out is final
+    # the same legs as parts of two objects the top merely rests on are closed
+    loose = finalize(Arrangement((legs[0].with_(object="p"), legs[1].with_(object="q"),
+                                  top.with_(object="r")), (ground(),)), [])
+    out, closed = close_hidden_gaps(loose, views)
+    assert closed == ["a|b"]
+
 def test_a_gap_the_camera_saw_the_floor_through_stays_open():
     # the books truly stand 15 mm apart and the camera looks down into the gap: the
     # floor seen between them says the gap is empty
