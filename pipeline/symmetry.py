@@ -22,6 +22,10 @@ from .contacts import pair_tolerance, sat_separation
 from .extend import FREE_FRACTION_MAX, DepthView, visible_free_fraction
 from .model import Arrangement, Cuboid
 
+#: A leg is at most this fraction of its top's narrower horizontal side wide (a shelf's
+#: side panel, as deep as its boards, is not a leg to be copied to the other corners).
+LEG_MAX_WIDTH = 0.5
+
 
 def _upright_extent(c: Cuboid) -> tuple[float, float]:
     """(height, largest horizontal extent) of a box, from its axes' z components."""
@@ -102,12 +106,14 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
             other = [k for k in range(3) if k != ax]
             areas.append(c.size[other[0]] * c.size[other[1]])
         top = cubs[int(np.argmax(areas))]
+        up = int(np.argmax(np.abs(top.rotation[2, :])))
+        top_narrow = float(min(top.size[k] for k in range(3) if k != up))
         legs = []
         for c in cubs:
             if c is top:
                 continue
             h, w = _upright_extent(c)
-            if h > 1.5 * w and c.center[2] < top.center[2]:
+            if h > 1.5 * w and w <= LEG_MAX_WIDTH * top_narrow and c.center[2] < top.center[2]:
                 legs.append(c)
         if len(members) == 2:  # a top and one part under it: its mirror image
             new = _mirror_support(top, next(c for c in cubs if c is not top), obj, len(added))

@@ -127,6 +127,37 @@ def test_fourth_leg_is_hallucinated_by_symmetry():
     assert res.arrangement.stability.stable
 
 
+
+def test_a_shelf_side_panel_is_no_leg_to_copy_to_the_other_corners():
+    # shelf-1003 of Table 1: one side panel seen full (0.35 m deep), the other seen
+    # edge-on as a 6 cm sliver at the far front corner.  Taken for two legs in opposite
+    # quadrants, they made the panel's half-turn copy a third side panel (5 false
+    # contacts).  A part as wide as half the boards' depth is no leg
+    from pipeline.symmetry import LEG_MAX_WIDTH, hallucinate
+
+    # the shelf's boxes as fitted (yaw 21.8 degrees; the boards 0.72 m long, 0.25-0.34 m
+    # of their 0.355 m depth seen)
+    yaw = np.radians(21.794244)
+    boards = [box(f"board{k}", c, s, yaw=yaw, object="shelf") for k, (c, s) in enumerate((
+        ((0.10548, 0.058805, 0.084197), (0.097521, 0.724155, 0.008974)),
+        ((0.051365, 0.037166, 0.428652), (0.23805, 0.724155, 0.008654)),
+        ((0.037672, 0.031691, 0.759165), (0.245959, 0.724155, 0.029778)),
+        ((0.00208, 0.01746, 1.115227), (0.342482, 0.724155, 0.007759))))]
+    full = box("side_l", (-0.141792, 0.353971, 0.580918), (0.346601, 0.007594, 1.068323),
+               yaw=yaw, object="shelf")
+    sliver = box("side_r", (0.266453, -0.273524, 0.588873), (0.062698, 0.012525, 1.060466),
+                 yaw=yaw, object="shelf")
+    out, added = hallucinate(Arrangement((*boards, full, sliver), (ground(),)), [])
+    assert added == [] and out.cuboids == (*boards, full, sliver)
+    # legs as narrow as a chair's, the same positions, are copied: the boundary is the width
+    assert 0.035 <= LEG_MAX_WIDTH * 0.35
+    legs = [box("leg_l", (-0.33, 0.15, 0.4), (0.035, 0.035, 0.8), object="shelf"),
+            box("leg_r", (0.33, -0.15, 0.4), (0.035, 0.035, 0.8), object="shelf")]
+    top = box("top", (0, 0, 0.8085), (0.72, 0.35, 0.017), object="shelf")
+    _, added = hallucinate(Arrangement((top, *legs), (ground(),)), [])
+    assert len(added) == 2
+
+
 def test_refinement_lowers_energy_keeping_contacts_and_observed_points():
     # a top box overhanging its base by 55 % of its length: refinement slides and grows it back
     base = box("base", (0, 0, 0.5), (1, 1, 1))
