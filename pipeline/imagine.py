@@ -257,8 +257,12 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
             else:
                 ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
                 by_share = min(ri, rj) > 0.5
+                side = False
                 if by_share:  # thin boxes: clear through the face that costs least of them
-                    ri, rj = _relative_overlap(ci, cj, True), _relative_overlap(cj, ci, True)
+                    # (through their sides when they stand side by side on one surface)
+                    side = _side_by_side(ci, cj)
+                    ri, rj = (_relative_overlap(ci, cj, True, side),
+                              _relative_overlap(cj, ci, True, side))
                     # ... unless one was fitted to far more points: the other gives way
                     pi, pj = _points(ci), _points(cj)
                     if pj >= EVIDENCE_RATIO * pi:
@@ -272,12 +276,14 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                         continue
                 if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
                     if ri <= rj:
-                        cubs[i] = _shrink_against(ci, cj, by_share=by_share)
+                        cubs[i] = _shrink_against(ci, cj, by_share=by_share, sideways=side)
                     else:
-                        cubs[j] = _shrink_against(cj, ci, by_share=by_share)
+                        cubs[j] = _shrink_against(cj, ci, by_share=by_share, sideways=side)
                 else:
-                    cubs[i] = _shrink_against(ci, cj, share=0.5, by_share=by_share)
-                    cubs[j] = _shrink_against(cj, ci, share=0.5, by_share=by_share)
+                    cubs[i] = _shrink_against(ci, cj, share=0.5, by_share=by_share,
+                                              sideways=side)
+                    cubs[j] = _shrink_against(cj, ci, share=0.5, by_share=by_share,
+                                              sideways=side)
             repaired += 1
         arr = arr.with_(cuboids=tuple(c for c in cubs if c is not None))
     return arr, repaired
@@ -801,17 +807,32 @@ def _square_to(c: Cuboid, other: Cuboid, min_deg: float = SQUARE_MIN_DEG) -> Cub
     return c.with_(rotation=rotation_about_axis(up, turn) @ c.rotation)
 
 
+def _side_by_side(a: Cuboid, b: Cuboid) -> bool:
+    """Whether two upright boxes stand side by side: each at least as tall as its narrower
+    horizontal side (no slab), their bottoms level within a quarter of the lower box's
+    height (two books on one board, neither on the other)."""
+    for c in (a, b):
+        ax = _vertical_axis(c)
+        if ax is None or c.size[ax] < np.delete(c.size, ax).min():
+            return False
+    (lo_a, hi_a), (lo_b, hi_b) = _z_range(a), _z_range(b)
+    return abs(lo_a - lo_b) <= 0.25 * min(hi_a - lo_a, hi_b - lo_b)
+
+
 def _points(c: Cuboid) -> float:
     """The points a box was fitted to (1 when unknown: every box counts alike)."""
     return max(float(c.extra.get("points", 1)), 1.0)
 
 
-def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False
+def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False, sideways: bool = False
                   ) -> tuple[float, int, int] | None:
     """(overlap, axis, side) of the face of ``c`` reaching least far into ``other``
-    (``by_share``: whose retreat costs ``c`` the smallest share of its extent there)."""
+    (``by_share``: whose retreat costs ``c`` the smallest share of its extent there;
+    ``sideways``: of its upright faces only)."""
     best, least = None, None
     for ax in range(3):
+        if sideways and abs(c.rotation[2, ax]) > 0.5:
+            continue
         for side in (0, 1):
             u = c.rotation[:, ax] * (1 if side else -1)
             face = c.center @ u + c.size[ax] / 2
@@ -823,18 +844,19 @@ def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False
     return best
 
 
-def _relative_overlap(c: Cuboid, other: Cuboid, by_share: bool = False) -> float:
+def _relative_overlap(c: Cuboid, other: Cuboid, by_share: bool = False,
+                      sideways: bool = False) -> float:
     """The share of its extent ``c`` would lose to clear ``other`` (inf when it cannot)."""
-    best = _overlap_face(c, other, by_share)
+    best = _overlap_face(c, other, by_share, sideways)
     return float("inf") if best is None else best[0] / float(c.size[best[1]])
 
 
 def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0,
-                    by_share: bool = False) -> Cuboid:
+                    by_share: bool = False, sideways: bool = False) -> Cuboid:
     """Move the face of ``c`` that overlaps ``other`` back by ``share`` of the overlap
     (at most half of ``c``'s extent there)."""
     tol = float(pair_tolerance(c.size[None], other.size[None])[0])
-    best = _overlap_face(c, other, by_share)
+    best = _overlap_face(c, other, by_share, sideways)
     if best is None:
         return c
     overlap, ax, side = best

@@ -326,11 +326,15 @@ def _panel_and_askew_book(panel_points: int, book_points: int) -> Arrangement:
 
 def test_a_book_fitted_askew_gives_way_to_the_panel_fitted_to_far_more_points():
     # each would lose more than half through its least overlapping face; by share alone
-    # the panel (a third of its height) gives way: its bottom, seen 6 cm above the floor,
-    # is cut to the book's top and the panel stands on the book (fused to the board the
-    # book stands on, it clamps the book, which both engines then drop: 0.32 m)
+    # the panel (a third of its height) would give way through its bottom, seen 6 cm above
+    # the floor: cut to the book's top, the panel stood on the book (fused to the board the
+    # book stands on, it clamped the book, which both engines then dropped: 0.32 m).  They
+    # stand side by side (bottoms level): cuts go through their sides, even at equal points
     alike, _ = repair_overlaps(_panel_and_askew_book(1000, 1000))
-    assert alike.cuboid("panel").corners()[:, 2].min() > 0.44
+    p_alike = _panel_and_askew_book(1000, 1000).cuboid("panel")
+    assert alike.cuboid("panel").corners()[:, 2].min() == pytest.approx(
+        p_alike.corners()[:, 2].min())
+    assert not find_contacts(alike).penetrations
     # fitted to 24560 points against the book's 664, the panel keeps its extent
     arr = _panel_and_askew_book(24560, 664)
     out, n = repair_overlaps(arr)
@@ -396,6 +400,30 @@ def test_books_ending_at_the_underside_of_a_board_fitted_high_are_lifted_onto_it
     back = box("back", (0, 0.369, 0.431), (1.686, 0.142, 0.861), object="sofa")
     assert _resting_cut(back, seat) is None
     assert _resting_cut(back, seat, slabs=0.0) is None
+
+
+def test_books_standing_side_by_side_give_way_sideways_not_from_below():
+    # room-1001 of Table 1: two books on one board fitted across each other (yaws 82 and
+    # 7 degrees, 195 and 150 points).  Each would lose more than half, and by share the
+    # taller one's cheapest face was its bottom: cut 10 cm off from below, and then
+    # rested on its other neighbour, it floated 20 cm above its board.  Standing side by
+    # side (bottoms level), they give way through their sides and keep their heights
+    a = box("a", (4.629, 0.2382, 0.9795), (0.1056, 0.0663, 0.3177), yaw=np.radians(81.633),
+            object="a").with_(extra={"points": 195})
+    b = box("b", (4.6316, 0.2128, 0.9174), (0.0788, 0.1265, 0.2023), yaw=np.radians(7.108),
+            object="b").with_(extra={"points": 150})
+    arr = Arrangement((_observed(a), _observed(b)), (ground(),))
+    out, _ = repair_overlaps(arr)
+    assert not find_contacts(out).penetrations
+    for c in (a, b):
+        z0, z1 = c.corners()[:, 2], out.cuboid(c.id).corners()[:, 2]
+        assert z1.min() == pytest.approx(z0.min()) and z1.max() == pytest.approx(z0.max())
+    # a book on a board is no neighbour standing beside it: a slab is still cut from
+    # the book's bottom, as before
+    from pipeline.imagine import _side_by_side
+
+    board = box("board", (4.6, 0.2, 0.81), (0.9, 0.26, 0.02), object="shelf")
+    assert _side_by_side(a, b) and not _side_by_side(a, board)
 
 def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     # three books fitted to noisy points (from a shelf scan): two 9 mm deep, overlapping

