@@ -998,6 +998,83 @@ def anchor_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.
 #: closed by :func:`close_hidden_gaps` (about three standard deviations of Kinect depth
 #: noise at 2 m).
 GAP_CLOSE = 0.02
+#: :func:`close_hidden_gaps` pushes a box's own face to the other box (beyond the pair's
+#: candidate extensions) only between faces the sensor saw: within this distance
+#: (metres) of where their box's observed face was (not one a deepening placed) ...
+SEEN_FACE_TOL = 0.005
+#: ... and that face each other (normals within 5 degrees): a corner of a box turned
+#: against the other's face is where the fit saw it.
+GAP_FACE_COS = float(np.cos(np.radians(5.0)))
+
+
+def _face_seen(c: Cuboid, u: np.ndarray) -> bool:
+    """Whether the face of ``c`` whose outward normal is nearest the unit vector ``u`` is
+    where the sensor saw it (its observed box's face, within :data:`SEEN_FACE_TOL`)."""
+    o = c.observed
+    if o is None:
+        return False
+    cos = c.rotation.T @ u
+    axis = int(np.argmax(np.abs(cos)))
+    w = c.rotation[:, axis] * np.sign(cos[axis])
+    face = float(c.center @ w) + float(c.size[axis]) / 2
+    seen = float(np.asarray(o.center) @ w) + float(np.asarray(o.size)[axis]) / 2
+    return face - seen <= SEEN_FACE_TOL
+
+
+def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps: int = 32):
+    """The shortest push of one face of box ``k`` that makes it just touch ``other`` (an
+    :class:`pipeline.extend.Extension`), or None when no push of at most ``max_len``
+    does.  Only faces the sensor saw that face one of ``other``'s seen faces are pushed
+    (:func:`_face_seen`, :data:`GAP_FACE_COS`).  A cushion a few degrees off its sofa's
+    back in yaw: the back's corners reach past the cushion's rear face plane, so the
+    candidate edges offer only to push the back (its whole face, into the arms beside
+    it).  The length is found on a grid of ``steps`` and refined on a second one
+    (``max_len / steps**2``), all faces in one separating-axis call each."""
+    from .extend import Extension
+
+    c = arr.cuboids[k]
+    faces = []
+    for axis in range(3):
+        for side in (0, 1):
+            u = c.rotation[:, axis] * (1.0 if side else -1.0)
+            if (float(u @ (other.center - c.center)) > 0.0
+                    and np.max(np.abs(other.rotation.T @ u)) >= GAP_FACE_COS
+                    and _face_seen(c, u) and _face_seen(other, -u)):
+                faces.append((axis, side, u))
+    if not faces:
+        return None
+    tol = float(pair_tolerance(c.size[None], other.size[None])[0])
+
+    def first_touch(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Per face, the smallest grid length in [lo, hi] at which the boxes meet (inf)."""
+        t = np.linspace(0.0, 1.0, steps + 1)[1:]
+        L = lo[:, None] + (hi - lo)[:, None] * t[None, :]  # (F, steps)
+        U = np.array([u for _, _, u in faces])
+        ax = np.array([a for a, _, _ in faces])
+        n = L.size
+        size = np.repeat(c.size[None], n, axis=0)
+        size[np.arange(n), np.repeat(ax, steps)] += L.ravel()
+        center = c.center + np.repeat(U, steps, axis=0) * L.ravel()[:, None] / 2
+        sep, _, _ = sat_separation(center, np.repeat(c.rotation[None], n, axis=0), size / 2,
+                                   np.repeat(other.center[None], n, axis=0),
+                                   np.repeat(other.rotation[None], n, axis=0),
+                                   np.repeat(other.size[None] / 2, n, axis=0),
+                                   np.full(n, tol))
+        meet = sep.reshape(L.shape) <= 0.0
+        return np.where(meet.any(axis=1), L[np.arange(len(L)), np.argmax(meet, axis=1)], np.inf)
+
+    zero = np.zeros(len(faces))
+    coarse = first_touch(zero, np.full(len(faces), max_len))
+    ok = np.isfinite(coarse)
+    if not ok.any():
+        return None
+    step = max_len / steps
+    fine = first_touch(np.where(ok, np.maximum(coarse - step, 0.0), 0.0),
+                       np.where(ok, coarse, step))
+    fine = np.where(ok, np.minimum(fine, coarse), np.inf)
+    f = int(np.argmin(fine))
+    axis, side, _ = faces[f]
+    return Extension(k, axis, side, float(fine[f]))
 
 
 def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float = 0.0,
@@ -1009,11 +1086,14 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
     that touch end up a few millimetres apart, and the search leaves them apart because
     they stand either way.  Where the slab between them lies in space that no depth view
     saw empty (the sensor could not have seen the gap), one box's face is pushed to the
-    other (the candidate extension of the pair, shortest first); the change is kept when
-    nothing interpenetrates and the arrangement still stands; parts of one object that
-    meet so are fused (parts already fused into one rigid body are left as they are: a
-    chair's back fixed to its seat does not grow down to a leg).  Without views (a bare point cloud) nothing is closed.  Returns the arrangement and the ``a|b`` pairs
-    closed.
+    other (the candidate extension of the pair, or, between two seen faces that face
+    each other, the box's own face: :func:`_facing_push`, for a cushion turned a degree
+    off its back, whose candidates offer only to push the back's whole face; shortest
+    first); the change is kept when nothing interpenetrates and the arrangement still
+    stands; parts of one object that meet so are fused (parts already fused into one
+    rigid body are left as they are: a chair's back fixed to its seat does not grow down
+    to a leg).  Without views (a bare point cloud) nothing is closed.  Returns the
+    arrangement and the ``a|b`` pairs closed.
     """
     from .extend import FREE_FRACTION_MAX, pair_edges, slab_samples, visible_free_fraction
     from .search import finalize
@@ -1026,13 +1106,26 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         a, b = final.cuboids[e.a].id, final.cuboids[e.b].id
         if tuple(sorted((a, b))) in touching:
             continue
+        ca, cb = final.cuboids[e.a], final.cuboids[e.b]
+        pushes = {}
         for o in e.options:
             if o.type == "touch" and len(o.extensions) == 1 and o.extensions[0].length <= gap:
-                opts.append((o.extensions[0].length, a, b, o.extensions[0]))
+                x = o.extensions[0]
+                pushes[(x.box, x.axis, x.side)] = x
+        # each box's own face towards the other, where the candidates offer none
+        # (between faces the sensor saw: not against a face a deepening guessed)
+        for k, other in ((e.a, cb), (e.b, ca)):
+            if any(key[0] == k for key in pushes):
+                continue
+            x = _facing_push(final, k, other, gap)
+            if x is not None:
+                pushes[(x.box, x.axis, x.side)] = x
+        opts += [(x.length, a, b, x) for x in pushes.values()]
     closed: list[str] = []
     grown: set[tuple[str, int, int]] = set()
     rigid = _components_of(list(final.ids), final.contacts)
-    for _length, a, b, x in sorted(opts, key=lambda t: t[:3]):
+    for _length, a, b, x in sorted(opts, key=lambda t: (*t[:3], t[3].box, t[3].axis,
+                                                            t[3].side)):
         cid = final.cuboids[x.box].id
         if (cid, x.axis, x.side) in grown or tuple(sorted((a, b))) in touching:
             continue
@@ -1559,9 +1652,11 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
                          threshold=threshold)
     final, anchored = anchor_parts(final, arr, edges, mu=mu, threshold=threshold)
-    final, gaps = close_hidden_gaps(final, views, margin, mu=mu, threshold=threshold)
+    # (the boxes the search grew to the floor first get their hidden supports: their
+    # gaps are those of the boxes the sensor saw)
     final, hidden = hidden_supports(final, mu=mu, threshold=threshold, views=views,
                                     margin=margin)
+    final, gaps = close_hidden_gaps(final, views, margin, mu=mu, threshold=threshold)
     timings["relax"] = time.perf_counter() - t
 
     t = time.perf_counter()

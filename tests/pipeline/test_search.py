@@ -375,3 +375,36 @@ def test_a_chair_back_is_not_left_stretched_to_the_floor_once_all_legs_stand():
     assert all(types.get(("ground", f"leg{k}")) == "touch" for k in (1, 2, 3, 4))
     back = res.arrangement.cuboid("back")
     np.testing.assert_allclose(back.size, [0.0075, 0.4492, 0.4696])
+
+
+def _sofa_frame(far_top: float):
+    # a sofa's back and two arms (one object): the near arm seen whole on the floor, the
+    # far arm seen only over its top 15 cm (the cushions hide the rest), fused to the back
+    def b(name, c, s):
+        return box(name, c, s, object="sofa")
+
+    return Arrangement((
+        b("back", (0.0, 0.3, 0.425), (2.0, 0.2, 0.85)),
+        b("near", (0.9, -0.1, 0.3), (0.18, 0.6, 0.6)),
+        b("far", (-0.9, -0.1, far_top - 0.075), (0.18, 0.6, 0.15)),
+    ), (ground(),))
+
+
+def test_an_arm_seen_only_at_its_top_stands_on_the_floor_like_its_twin():
+    # the far arm has the near arm's footprint and top: the same column, seen differently;
+    # it reaches the floor like its twin although the glue to the back would hold it
+    res = search(_sofa_frame(0.6), candidate_edges(_sofa_frame(0.6)), budget=5)
+    assert res.stable and res.n_fixed == 0
+    t = _types(res.arrangement)
+    assert t[("far", "ground")] == "touch" and t[("ground", "near")] == "touch"
+    assert t[("back", "far")] == "fixed"
+    np.testing.assert_allclose(res.arrangement.cuboid("far").size, [0.18, 0.6, 0.6], atol=1e-9)
+
+
+def test_a_part_whose_top_is_not_its_twins_is_left_hanging():
+    # 15 cm lower than the near arm's top: not the same column, it stays glued
+    arr = _sofa_frame(0.45)
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable
+    assert ("far", "ground") not in _types(res.arrangement)
+    np.testing.assert_allclose(res.arrangement.cuboid("far").size, [0.18, 0.6, 0.15], atol=1e-9)
