@@ -42,7 +42,7 @@ import numpy as np
 from .contacts import find_contacts, pair_tolerance, sat_separation
 from .errors import InputError
 from .extend import DepthView, candidate_edges, depth_noise, prune_by_visibility
-from .model import Arrangement, Contact, Cuboid, ObservedBox
+from .model import Arrangement, Contact, Cuboid, ObservedBox, is_support_id
 from .refine import refine
 from .search import search
 from .snap import close_gaps
@@ -1092,10 +1092,18 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
     first); the change is kept when nothing interpenetrates and the arrangement still
     stands; parts of one object that meet so are fused (parts already fused into one
     rigid body are left as they are: a chair's back fixed to its seat does not grow down
-    to a leg).  Without views (a bare point cloud) nothing is closed.  Returns the
-    arrangement and the ``a|b`` pairs closed.
+    to a leg).  A box's face just off a wall is pushed to the wall the same way (the
+    wall behind a book on a wall shelf is hidden by the book).  Without views (a bare
+    point cloud) nothing is closed.  Returns the arrangement and the ``a|b`` pairs closed
+    (``b`` may be a wall's id).
     """
-    from .extend import FREE_FRACTION_MAX, pair_edges, slab_samples, visible_free_fraction
+    from .extend import (
+        FREE_FRACTION_MAX,
+        pair_edges,
+        slab_samples,
+        support_edges,
+        visible_free_fraction,
+    )
     from .search import finalize
 
     if not views or final.stability is None or not final.stability.stable:
@@ -1121,6 +1129,15 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
             if x is not None:
                 pushes[(x.box, x.axis, x.side)] = x
         opts += [(x.length, a, b, x) for x in pushes.values()]
+    # ... and a box's face to a wall it stands just off (the wall behind a book on a
+    # wall shelf is hidden by the book itself)
+    for e in support_edges(final, gap):
+        a = final.cuboids[e.a].id
+        if not str(e.b).startswith("wall:") or tuple(sorted((a, e.b))) in touching:
+            continue
+        for o in e.options:
+            if o.type == "touch" and len(o.extensions) == 1 and o.extensions[0].length <= gap:
+                opts.append((o.extensions[0].length, a, e.b, o.extensions[0]))
     closed: list[str] = []
     grown: set[tuple[str, int, int]] = set()
     rigid = _components_of(list(final.ids), final.contacts)
@@ -1129,7 +1146,8 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         cid = final.cuboids[x.box].id
         if (cid, x.axis, x.side) in grown or tuple(sorted((a, b))) in touching:
             continue
-        oa, ob = final.cuboid(a).object, final.cuboid(b).object
+        oa = final.cuboid(a).object
+        ob = None if is_support_id(b) else final.cuboid(b).object
         if oa is not None and oa == ob and rigid[a] == rigid[b]:
             continue  # parts already one rigid body: a joint between them adds nothing
         if visible_free_fraction(slab_samples(final, x), views, margin) > FREE_FRACTION_MAX / 2:

@@ -627,6 +627,48 @@ def test_a_hidden_gap_between_parts_already_fused_into_one_body_stays_open():
     out, closed = close_hidden_gaps(loose, views)
     assert closed == ["a|b"]
 
+
+def _book_off_a_wall(gap: float, eye, true_gap: float = 0.0):
+    """A wall shelf's board fixed to the wall y = 0 and a book standing on it ``gap``
+    off the wall (finalized, stable), and the true depth image from ``eye`` of the board,
+    the wall (a 4 cm slab behind y = 0) and the book ``true_gap`` off the wall."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.model import Support
+    from pipeline.search import finalize
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at(eye, (0.0, 0.1, 1.3) if eye[1] > 0.5 else (0.0, eye[1], 1.3))
+    wall = Support("wall:0", np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    board = box("board", (0, 0.12, 1.19), (0.8, 0.24, 0.02), object="shelf")
+    true_book = box("book", (0, 0.1 + true_gap / 2, 1.3), (0.2, 0.2 - true_gap, 0.2))
+    slab = box("wallslab", (0, -0.02, 1.3), (3.0, 0.04, 3.0))
+    side = box("sidewall", (-1.2, 1.5, 1.5), (0.04, 3.0, 3.0))  # a wall across the end
+    views = [DepthView(_depth_of_boxes([board, true_book, slab, side], T, intr), intr, T)]
+    book = box("book", (0, 0.1 + gap / 2, 1.3), (0.2, 0.2 - gap, 0.2), object="book")
+    arr = Arrangement((board, book), (ground(), wall))
+    return finalize(arr, [Contact("board", "wall:0", "fixed")]), views
+
+
+def test_a_book_standing_just_off_a_wall_it_hides_is_pushed_to_it():
+    # wall_shelf-1000 of Table 1: books on a wall shelf lean on the wall; their boxes,
+    # deepened from their spines, ended 11 mm short of it.  The wall behind a book is
+    # hidden by the book: the gap is closed and the book touches the wall
+    from pipeline.imagine import close_hidden_gaps
+
+    final, views = _book_off_a_wall(0.011, eye=(0.0, 2.0, 1.6))
+    assert ("book", "wall:0") not in find_contacts(final).lookup()
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == ["book|wall:0"] and not find_contacts(out).penetrations
+    b = out.cuboid("book")
+    assert b.center[1] - b.size[1] / 2 == pytest.approx(0.0, abs=1e-9)  # face on the wall
+    assert ("book", "wall:0") in find_contacts(out).lookup() and out.stability.stable
+    # a book truly 15 mm off the wall, seen by a camera looking along the wall through
+    # the gap (at the room's side wall): it stays open
+    final, views = _book_off_a_wall(0.015, eye=(1.2, 0.0075, 1.32), true_gap=0.015)
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == [] and out is final
+
 def test_a_gap_the_camera_saw_the_floor_through_stays_open():
     # the books truly stand 15 mm apart and the camera looks down into the gap: the
     # floor seen between them says the gap is empty
