@@ -998,6 +998,9 @@ def anchor_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.
 #: closed by :func:`close_hidden_gaps` (about three standard deviations of Kinect depth
 #: noise at 2 m).
 GAP_CLOSE = 0.02
+#: ... and gaps between a box and a wall up to this many times as long (a wall is seen
+#: as a plane fitted to many points; the box's back face is a guess from its front).
+WALL_GAP_CLOSE_REL = 1.5
 #: :func:`close_hidden_gaps` pushes a box's own face to the other box (beyond the pair's
 #: candidate extensions) only between faces the sensor saw: within this distance
 #: (metres) of where their box's observed face was (not one a deepening placed) ...
@@ -1131,12 +1134,14 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         opts += [(x.length, a, b, x) for x in pushes.values()]
     # ... and a box's face to a wall it stands just off (the wall behind a book on a
     # wall shelf is hidden by the book itself)
-    for e in support_edges(final, gap):
+    wall_gap = WALL_GAP_CLOSE_REL * gap
+    for e in support_edges(final, wall_gap):
         a = final.cuboids[e.a].id
         if not str(e.b).startswith("wall:") or tuple(sorted((a, e.b))) in touching:
             continue
         for o in e.options:
-            if o.type == "touch" and len(o.extensions) == 1 and o.extensions[0].length <= gap:
+            if (o.type == "touch" and len(o.extensions) == 1
+                    and o.extensions[0].length <= wall_gap):
                 opts.append((o.extensions[0].length, a, e.b, o.extensions[0]))
     closed: list[str] = []
     grown: set[tuple[str, int, int]] = set()

@@ -663,6 +663,14 @@ def test_a_book_standing_just_off_a_wall_it_hides_is_pushed_to_it():
     b = out.cuboid("book")
     assert b.center[1] - b.size[1] / 2 == pytest.approx(0.0, abs=1e-9)  # face on the wall
     assert ("book", "wall:0") in find_contacts(out).lookup() and out.stability.stable
+    # a wall is a plane fitted to many points: gaps to it are closed up to 1.5 times as
+    # long as between two boxes (2.5 cm here; 3.5 cm is left open)
+    from pipeline.imagine import GAP_CLOSE, WALL_GAP_CLOSE_REL
+
+    assert GAP_CLOSE < 0.025 < WALL_GAP_CLOSE_REL * GAP_CLOSE < 0.035
+    for gap, n in ((0.025, 1), (0.035, 0)):
+        final, views = _book_off_a_wall(gap, eye=(0.0, 2.0, 1.6))
+        assert len(close_hidden_gaps(final, views)[1]) == n
     # a book truly 15 mm off the wall, seen by a camera looking along the wall through
     # the gap (at the room's side wall): it stays open
     final, views = _book_off_a_wall(0.015, eye=(1.2, 0.0075, 1.32), true_gap=0.015)
