@@ -8,7 +8,10 @@ gets the missing legs: each is the diagonally opposite leg turned half a turn ab
 top's vertical axis (independent of the top's yaw), or, when that leg is missing too, a
 leg of a neighbouring quadrant mirrored.  An object of just a top and one part under
 one end of it (a wall shelf's board and one of its brackets, a desk's top and one side)
-gets that part's mirror image under the other end.  The new part
+gets that part's mirror image under the other end.  An object whose top has a twin
+(another object's top of the same size right above or below it: wall shelves hung one
+above the other) with more parts under it gets the twin's parts it lacks, moved by the
+offset between the two tops.  The new part
 is kept only if it does not interpenetrate anything and, when a depth image exists,
 the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
 no observed box, and takes part in the search like any other cuboid.
@@ -155,6 +158,89 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
             if views and visible_free_fraction(_box_samples(new), views, margin) > FREE_FRACTION_MAX:
                 continue
             added.append(new)
+    added += _twin_parts(arr, added, views, margin)
     if not added:
         return arr, []
     return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]
+
+
+def _top_of(cubs: list[Cuboid]) -> Cuboid:
+    """The part of largest horizontal area."""
+    def area(c: Cuboid) -> float:
+        up = int(np.argmax(np.abs(c.rotation[2, :])))
+        return float(np.prod(np.delete(c.size, up)))
+    return max(cubs, key=area)
+
+
+def _under(top: Cuboid, part: Cuboid) -> bool:
+    """Whether ``part`` stands under ``top``: its top within a tenth of the top's length
+    of the top's bottom and its centre inside the top's footprint."""
+    up = int(np.argmax(np.abs(top.rotation[2, :])))
+    horiz = [k for k in range(3) if k != up]
+    p = top.rotation.T @ (part.center - top.center)
+    h_part, _ = _upright_extent(part)
+    top_bottom = float(top.center[2] - top.size[up] / 2)
+    return (all(abs(p[k]) <= top.size[k] / 2 for k in horiz)
+            and abs(part.center[2] + h_part / 2 - top_bottom) <= 0.1 * float(max(top.size)))
+
+
+def _twins(a: Cuboid, b: Cuboid) -> bool:
+    """Whether two upright tops are the same board one above the other: horizontal sides
+    equal within :data:`TWIN_SIZE_REL`, long sides parallel within 10 degrees, centres
+    within a tenth of the long side of the same vertical."""
+    out = []
+    for c in (a, b):
+        up = int(np.argmax(np.abs(c.rotation[2, :])))
+        if abs(c.rotation[2, up]) < 0.99:
+            return False
+        horiz = sorted((k for k in range(3) if k != up), key=lambda k: float(c.size[k]))
+        out.append((c.size[horiz], c.rotation[:, horiz[1]]))
+    (sa, la), (sb, lb) = out
+    length = float(max(sa[1], sb[1]))
+    return (bool(np.all(np.abs(sa - sb) <= TWIN_SIZE_REL * np.maximum(sa, sb)))
+            and abs(float(la @ lb)) >= np.cos(np.radians(10.0))
+            and float(np.linalg.norm((a.center - b.center)[:2])) <= 0.1 * length
+            and abs(float(a.center[2] - b.center[2])) > 0.0)
+
+
+#: Two boards are twins when their horizontal sides agree within this fraction.
+TWIN_SIZE_REL = 0.1
+
+
+def _twin_parts(arr: Arrangement, added: list[Cuboid], views: list[DepthView],
+                margin: float) -> list[Cuboid]:
+    """Parts under a board copied from its twin: wall shelves of one make hung one above
+    the other, or a stack of equal tables, where one shows the brackets (legs) under its
+    board and the other shows fewer: the other gets the missing ones, moved by the
+    offset between the two boards.  A copy is kept where none of the object's own parts
+    already is, nothing is in the way and no view saw through it."""
+    cur = list(arr.cuboids) + list(added)
+    by_object: dict[str, list[Cuboid]] = {}
+    for c in cur:
+        if c.object is not None:
+            by_object.setdefault(c.object, []).append(c)
+    new: list[Cuboid] = []
+    for obj, members in sorted(by_object.items()):
+        top = _top_of(members)
+        for other, theirs in sorted(by_object.items()):
+            twin_top = _top_of(theirs)
+            if other == obj or len(theirs) <= len(members) or not _twins(top, twin_top):
+                continue
+            shift = top.center - twin_top.center
+            for part in theirs:
+                if part is twin_top or not _under(twin_top, part):
+                    continue
+                copy = Cuboid(f"h{len(added) + len(new)}_{obj}", part.center + shift,
+                              part.rotation, part.size.copy(), part.density, obj, None,
+                              {"hallucinated": True, "points": 0})
+                if any(np.linalg.norm(m.center - copy.center) < 0.5 * float(max(copy.size))
+                       for m in members):
+                    continue  # the object has that part already
+                if not _free(arr.with_(cuboids=arr.cuboids + tuple(added) + tuple(new)), copy):
+                    continue
+                if views and visible_free_fraction(_box_samples(copy), views,
+                                                   margin) > FREE_FRACTION_MAX:
+                    continue
+                new.append(copy)
+            break
+    return new

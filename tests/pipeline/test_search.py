@@ -158,6 +158,37 @@ def test_a_shelf_side_panel_is_no_leg_to_copy_to_the_other_corners():
     assert len(added) == 2
 
 
+
+def test_brackets_hidden_under_a_board_are_copied_from_its_twin_above():
+    # wall_shelf-1001 of Table 1: three equal wall shelves one above the other; the
+    # brackets under the lowest board are hidden by it, those under the others seen.
+    # The lowest gets its twin's brackets, moved down by the boards' offset
+    from pipeline.model import Support
+    from pipeline.symmetry import hallucinate
+
+    wall = Support("wall:0", np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+
+    def shelf(name, z, length=0.78, brackets=(-0.3, 0.3)):
+        board = box(f"{name}_board", (0, 0.135, z), (length, 0.27, 0.02), object=name)
+        return [board] + [box(f"{name}_br{k}", (x, 0.08, z - 0.07), (0.025, 0.16, 0.12),
+                              object=name) for k, x in enumerate(brackets)]
+
+    low, mid, top = shelf("s0", 1.2, brackets=()), shelf("s1", 1.63), shelf("s2", 2.06)
+    arr = Arrangement(tuple(low + mid + top), (ground(), wall))
+    out, added = hallucinate(arr, [])
+    assert len(added) == 2
+    got = sorted(tuple(np.round(out.cuboid(i).center, 9)) for i in added)
+    np.testing.assert_allclose(got, [(-0.3, 0.08, 1.13), (0.3, 0.08, 1.13)], atol=1e-9)
+    assert all(out.cuboid(i).object == "s0" and out.cuboid(i).observed is None for i in added)
+    # one bracket of its own seen: only the other is copied
+    low_one = shelf("s0", 1.2, brackets=(0.3,))
+    _, added = hallucinate(Arrangement(tuple(low_one + mid + top), (ground(), wall)), [])
+    assert len(added) == 1
+    # a board 20 % longer is no twin: nothing is copied
+    longer = shelf("s0", 1.2, length=0.94, brackets=())
+    _, added = hallucinate(Arrangement(tuple(longer + mid + top), (ground(), wall)), [])
+    assert added == []
+
 def test_refinement_lowers_energy_keeping_contacts_and_observed_points():
     # a top box overhanging its base by 55 % of its length: refinement slides and grows it back
     base = box("base", (0, 0, 0.5), (1, 1, 1))
