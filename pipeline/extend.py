@@ -322,6 +322,13 @@ def visible_free_fraction(points: np.ndarray, views: list[DepthView],
     """Fraction of ``points`` that some view saw as empty (clearly in front of its depth)."""
     if not len(points) or not views:
         return 0.0
+    return float(visible_free_mask(points, views, margin).mean())
+
+
+def visible_free_mask(points: np.ndarray, views: list[DepthView],
+                      margin: float = 0.0) -> np.ndarray:
+    """Per point of ``points``: whether some view saw it as empty (clearly in front of
+    its depth)."""
     seen = np.zeros(len(points), bool)
     for view in views:
         uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
@@ -334,7 +341,7 @@ def visible_free_fraction(points: np.ndarray, views: list[DepthView],
         d = _nearest_depth(view.depth)[iv, iu]
         tol = 3 * depth_noise(d) + margin
         seen |= inside & (d > 0) & (z < d - tol)
-    return float(seen.mean())
+    return seen
 
 
 _NEAREST_CACHE: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -390,4 +397,4 @@ def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthVi
 
 __all__ = ["Extension", "Option", "Edge", "apply_offsets", "offsets_of", "candidate_edges",
            "pair_edges", "support_edges", "prune_penetrating", "DepthView", "prune_by_visibility",
-           "visible_free_fraction", "slab_samples", "depth_noise", "is_support_id"]
+           "visible_free_fraction", "visible_free_mask", "slab_samples", "depth_noise", "is_support_id"]

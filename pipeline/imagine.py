@@ -46,7 +46,7 @@ from .model import Arrangement, Contact, Cuboid, ObservedBox, is_support_id
 from .refine import refine
 from .search import search
 from .snap import close_gaps
-from .symmetry import hallucinate
+from .symmetry import hallucinate, hidden_connectors
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
 ISOLATE_ROUNDS = 3
@@ -1614,6 +1614,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         scale = arr.scale_length()
         margin = 0.05 * scale
     arr, deepened = deepen_thin_boxes(arr, views, margin)
+    arr, connectors = hidden_connectors(arr, views, margin)
     arr, joined_parts = join_parts(arr, views=views, margin=margin)
     hallucinated = []
     if symmetry:
@@ -1721,7 +1722,8 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "cuboids": len(final.cuboids),
         "aligned_boxes": aligned,
         "repaired_overlaps": repaired,
-        "hallucinated": hallucinated + hidden,
+        "hallucinated": connectors + hallucinated + hidden,
+        "connectors": connectors,
         "hidden_supports": hidden,
         "candidate_edges": len(edges),
         "candidate_options": n_candidates,

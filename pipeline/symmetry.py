@@ -22,8 +22,17 @@ from __future__ import annotations
 import numpy as np
 
 from .contacts import pair_tolerance, sat_separation
-from .extend import FREE_FRACTION_MAX, DepthView, visible_free_fraction
+from .extend import FREE_FRACTION_MAX, DepthView, visible_free_fraction, visible_free_mask
 from .model import Arrangement, Cuboid
+
+#: A hidden connector bridges a gap of at most this fraction of the upper part's height.
+CONNECTOR_MAX_GAP_REL = 0.5
+#: ... and of at least this much (metres): a narrower gap is a fitted box's noisy edge,
+#: which :func:`pipeline.imagine.join_parts` closes.
+CONNECTOR_MIN_GAP = 0.02
+#: The gap under the upper part is sampled this finely (metres) to find the columns no
+#: view saw into.
+CONNECTOR_STEP = 0.01
 
 #: A leg is at most this fraction of its top's narrower horizontal side wide (a shelf's
 #: side panel, as deep as its boards, is not a leg to be copied to the other corners).
@@ -87,6 +96,124 @@ def _mirror_support(top: Cuboid, part: Cuboid, obj: str, n: int) -> Cuboid | Non
     R[:, k] = -R[:, k]
     return Cuboid(f"h{n}_{obj}", top.center + top.rotation @ p, R, part.size.copy(),
                   part.density, obj, None, {"hallucinated": True, "points": 0})
+
+
+def _upright_axis(c: Cuboid) -> int | None:
+    """The axis of ``c`` along the vertical, or None when it is tilted (over 2.5 deg)."""
+    k = int(np.argmax(np.abs(c.rotation[2])))
+    return k if abs(c.rotation[2, k]) > np.cos(np.radians(2.5)) else None
+
+
+def _gap_grid(a: Cuboid, horiz: list[int], lo: np.ndarray, hi: np.ndarray, z0: float,
+              gap: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Samples every :data:`CONNECTOR_STEP` (4 to 64 a side) over the footprint
+    ``lo``..``hi`` (in ``a``'s frame, axes ``horiz``) and from height ``z0`` up by ``gap``:
+    the two horizontal coordinates (n0, n1, nz) and the world points (n0 * n1 * nz, 3)."""
+    n = [max(4, min(64, int(np.ceil((hi[k] - lo[k]) / CONNECTOR_STEP)))) for k in horiz]
+    nz = max(4, min(16, int(np.ceil(gap / CONNECTOR_STEP))))
+    t0 = lo[horiz[0]] + (np.arange(n[0]) + 0.5) / n[0] * (hi[horiz[0]] - lo[horiz[0]])
+    t1 = lo[horiz[1]] + (np.arange(n[1]) + 0.5) / n[1] * (hi[horiz[1]] - lo[horiz[1]])
+    tz = z0 + (np.arange(nz) + 0.5) / nz * gap
+    g0, g1, gz = np.meshgrid(t0, t1, tz, indexing="ij")
+    pts = (a.center + g0[..., None] * a.rotation[:, horiz[0]]
+           + g1[..., None] * a.rotation[:, horiz[1]])
+    pts[..., 2] = gz
+    return g0, g1, pts.reshape(-1, 3)
+
+
+def _over(g0: np.ndarray, g1: np.ndarray, horiz: list[int], lo: np.ndarray,
+          hi: np.ndarray) -> np.ndarray:
+    """Which samples of :func:`_gap_grid` lie inside the footprint ``lo``..``hi``."""
+    return ((g0 > lo[horiz[0]]) & (g0 < hi[horiz[0]])
+            & (g1 > lo[horiz[1]]) & (g1 < hi[horiz[1]]))
+
+
+def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 0.0
+                      ) -> tuple[Arrangement, list[str]]:
+    """Add the hidden part that holds one part of an object above another.
+
+    A monitor's screen hangs a few centimetres above its foot on a neck hidden behind
+    it.  The two parts do not touch, and nothing else of their object holds them
+    together; stretching the screen down to the foot would fill space the sensor saw
+    empty under the screen's lower edge.  Where a view saw into the gap between an
+    upright part and one of its object's parts below it (over
+    :data:`pipeline.extend.FREE_FRACTION_MAX` of samples filling the gap over both
+    footprints seen empty), a new part fills the columns of the gap that no view saw into
+    at any height (sampled every :data:`CONNECTOR_STEP` metres), from the lower part's top
+    to the upper part's bottom: where the neck is, and what it hides.  Only gaps of at
+    least :data:`CONNECTOR_MIN_GAP` and at most :data:`CONNECTOR_MAX_GAP_REL` of the upper
+    part's height are bridged; the new
+    part carries ``extra["hallucinated"]`` and ``extra["connector"]`` and is kept only if
+    it does not interpenetrate anything.  Returns (arrangement, new ids).
+    """
+    if not views:
+        return arr, []
+    from .imagine import _same_object_groups  # (imagine imports this module)
+
+    by_object: dict[str, list[int]] = {}
+    for k, c in enumerate(arr.cuboids):
+        if c.object is not None:
+            by_object.setdefault(c.object, []).append(k)
+    if not any(len(m) > 1 for m in by_object.values()):
+        return arr, []
+    groups = _same_object_groups(arr)
+    added: list[Cuboid] = []
+    for i, a in enumerate(arr.cuboids):
+        ka = _upright_axis(a)
+        if a.object is None or ka is None or a.extra.get("hallucinated"):
+            continue
+        a_lo = float(a.center[2] - a.size[ka] / 2)
+        horiz = [k for k in range(3) if k != ka]
+        for j in by_object[a.object]:
+            b = arr.cuboids[j]
+            if j == i or groups[i] == groups[j] or (kb := _upright_axis(b)) is None:
+                continue
+            b_hi = float(b.center[2] + b.size[kb] / 2)
+            gap = a_lo - b_hi
+            tol = float(pair_tolerance(a.size[None], b.size[None])[0])
+            if not max(tol, CONNECTOR_MIN_GAP) < gap <= CONNECTOR_MAX_GAP_REL * a.size[ka]:
+                continue
+            # a stretched down to b would fill the gap under its seen face: beside b (over
+            # b the gap is too close to b's top for the sensor to tell) was it seen empty?
+            o = a.observed
+            if o is None:
+                continue
+            local = (b.corners() - a.center) @ a.rotation  # b's corners in a's frame
+            blo, bhi = local.min(axis=0), local.max(axis=0)
+            oc = a.rotation.T @ (np.asarray(o.center, float) - a.center)
+            osz = np.asarray(o.size, float)
+            g0, g1, pts = _gap_grid(a, horiz, oc - osz / 2, oc + osz / 2, b_hi, gap)
+            beside = ~_over(g0, g1, horiz, blo, bhi).reshape(-1)
+            if not beside.any() or visible_free_mask(pts[beside], views, margin).mean() \
+                    <= FREE_FRACTION_MAX:
+                continue  # nothing seen in the gap: a join may close it
+            # the columns over b that no view saw into, at any height
+            lo, hi = -a.size / 2, a.size / 2
+            g0, g1, pts = _gap_grid(a, horiz, lo, hi, b_hi, gap)
+            n = g0.shape[:2]
+            seen = visible_free_mask(pts, views, margin).reshape(g0.shape)
+            hidden = _over(g0, g1, horiz, blo, bhi)[..., 0] & ~seen.any(axis=2)
+            if not hidden.any():
+                continue
+            r0, r1 = np.nonzero(hidden)
+            d0, d1 = a.size[horiz[0]] / n[0], a.size[horiz[1]] / n[1]
+            lo0, hi0 = lo[horiz[0]] + r0.min() * d0, lo[horiz[0]] + (r0.max() + 1) * d0
+            lo1, hi1 = lo[horiz[1]] + r1.min() * d1, lo[horiz[1]] + (r1.max() + 1) * d1
+            size = np.zeros(3)
+            size[horiz[0]], size[horiz[1]], size[ka] = hi0 - lo0, hi1 - lo1, gap
+            center = (a.center + (lo0 + hi0) / 2 * a.rotation[:, horiz[0]]
+                      + (lo1 + hi1) / 2 * a.rotation[:, horiz[1]])
+            center[2] = b_hi + gap / 2
+            new = Cuboid(f"j{len(added)}_{a.object}", center, a.rotation.copy(), size,
+                         a.density, a.object, None,
+                         {"hallucinated": True, "connector": True, "points": 0})
+            if not _free(arr.with_(cuboids=arr.cuboids + tuple(added)), new):
+                continue
+            added.append(new)
+            groups = {k: (groups[i] if v == groups[j] else v) for k, v in groups.items()}
+    if not added:
+        return arr, []
+    return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]
 
 
 def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
