@@ -1027,8 +1027,9 @@ def _face_seen(c: Cuboid, u: np.ndarray) -> bool:
 def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps: int = 32):
     """The shortest push of one face of box ``k`` that makes it just touch ``other`` (an
     :class:`pipeline.extend.Extension`), or None when no push of at most ``max_len``
-    does.  Only faces the sensor saw that face one of ``other``'s seen faces are pushed
-    (:func:`_face_seen`, :data:`GAP_FACE_COS`).  A cushion a few degrees off its sofa's
+    does.  Only faces that face one of ``other``'s faces the sensor saw are pushed
+    (:func:`_face_seen`, :data:`GAP_FACE_COS`; the pushed face may be a guess, a
+    deepened cushion's rear face).  A cushion a few degrees off its sofa's
     back in yaw: the back's corners reach past the cushion's rear face plane, so the
     candidate edges offer only to push the back (its whole face, into the arms beside
     it).  The length is found on a grid of ``steps`` and refined on a second one
@@ -1042,7 +1043,7 @@ def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps:
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
             if (float(u @ (other.center - c.center)) > 0.0
                     and np.max(np.abs(other.rotation.T @ u)) >= GAP_FACE_COS
-                    and _face_seen(c, u) and _face_seen(other, -u)):
+                    and _face_seen(other, -u)):
                 faces.append((axis, side, u))
     if not faces:
         return None

@@ -867,6 +867,29 @@ def test_a_cushion_turned_off_its_back_has_its_own_rear_face_pushed_to_the_back(
     assert c.corners()[:, 1].max() == pytest.approx(0.3, abs=1e-3)
 
 
+
+def test_a_cushion_whose_rear_face_was_guessed_is_still_pushed_to_the_seen_back():
+    # sofa-1002 of Table 1: a back cushion deepened from its front (its rear face a
+    # guess) ended 6 mm short of the back.  The face pushed may be a guess; the face it
+    # is pushed to must have been seen
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import close_hidden_gaps
+
+    final = _sofa_corner(0.012, 1.0)
+    c = final.cuboid("cushion")
+    guessed = c.with_(observed=ObservedBox(c.center - c.rotation[:, 1] * 0.1,
+                                           c.size - [0.0, 0.2, 0.0]))
+    final = final.with_(cuboids=tuple(guessed if x.id == "cushion" else x
+                                      for x in final.cuboids))
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.3, -2.5, 1.6), (0.0, 0.0, 0.4))
+    true = [*final.cuboids[:3], _sofa_corner(0.0, 1.0).cuboid("cushion")]
+    views = [DepthView(_depth_of_boxes(true, T, intr), intr, T)]
+    out, closed = close_hidden_gaps(final, views)
+    assert closed == ["back|cushion"] and not find_contacts(out).penetrations
+    assert out.cuboid("cushion").corners()[:, 1].max() == pytest.approx(0.3, abs=1e-3)
+
 @pytest.mark.parametrize("yaw_deg, deepened", [(12.0, False), (1.0, True)])
 def test_a_cushion_face_is_not_pushed_at_a_turned_corner_or_a_guessed_face(
         yaw_deg, deepened, monkeypatch):
