@@ -1024,6 +1024,23 @@ def _face_seen(c: Cuboid, u: np.ndarray) -> bool:
     return face - seen <= SEEN_FACE_TOL
 
 
+def _under_a_held_part(arr: Arrangement, a: str, b: str, x, rigid: dict[str, int]) -> bool:
+    """Whether closing the vertical gap of extension ``x`` between ``a`` and ``b`` would
+    put the top of one box against the underside of a part of another object that is
+    fused to other parts of its own object (a book's top against the board above it:
+    the board is held by its shelf, and the book under it touches it only by chance;
+    a bridge's deck glued to another deck still rests on its pillars)."""
+    c = arr.cuboids[x.box]
+    if abs(c.rotation[2, x.axis]) < 0.9:
+        return False  # a sideways push
+    lower, upper = sorted((a, b), key=lambda i: float(arr.cuboid(i).center[2]))
+    if arr.cuboid(lower).object == arr.cuboid(upper).object:
+        return False
+    obj = arr.cuboid(upper).object
+    return obj is not None and sum(1 for i, v in rigid.items() if v == rigid[upper]
+                                   and arr.cuboid(i).object == obj) > 1
+
+
 def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps: int = 32):
     """The shortest push of one face of box ``k`` that makes it just touch ``other`` (an
     :class:`pipeline.extend.Extension`), or None when no push of at most ``max_len``
@@ -1156,6 +1173,8 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         ob = None if is_support_id(b) else final.cuboid(b).object
         if oa is not None and oa == ob and rigid[a] == rigid[b]:
             continue  # parts already one rigid body: a joint between them adds nothing
+        if ob is not None and _under_a_held_part(final, a, b, x, rigid):
+            continue
         if visible_free_fraction(slab_samples(final, x), views, margin) > FREE_FRACTION_MAX / 2:
             continue
         c = final.cuboids[x.box]

@@ -677,6 +677,44 @@ def test_a_book_standing_just_off_a_wall_it_hides_is_pushed_to_it():
     out, closed = close_hidden_gaps(final, views)
     assert closed == [] and out is final
 
+
+def test_a_book_is_not_pushed_up_against_the_board_its_shelf_holds_above_it():
+    # room-1001 of Table 1: books fitted a little tall end a centimetre under the board
+    # above them, the gap hidden; pushed together they touched the board, which the
+    # shelf holds (fused to its sides): a contact the scene does not have.  A plank
+    # that rests on blocks, fused to nothing, is still pushed down onto a box under it
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import close_hidden_gaps
+    from pipeline.search import finalize
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 1.5), (0.0, 0.0, 0.4))
+    blind = [DepthView(np.zeros((intr.height, intr.width)), intr, T)]  # saw nothing there
+
+    def scene(shelf: bool):
+        sides = [box(f"side{k}", (x, 0, 0.4), (0.02, 0.3, 0.8), object="shelf" if shelf
+                     else f"block{k}") for k, x in enumerate((-0.41, 0.41))]
+        low = box("low", (0, 0, 0.01), (0.8, 0.3, 0.02), object="shelf" if shelf else "low")
+        high = box("high", (0, 0, 0.41), (0.8, 0.3, 0.02) if shelf else (0.84, 0.3, 0.02),
+                   object="shelf" if shelf else "plank")
+        if not shelf:
+            high = high.with_(center=np.array([0, 0, 0.81]))
+        h = 0.368 if shelf else 0.768  # 12 mm under the board / plank
+        book = box("book", (0, 0, 0.02 + h / 2), (0.04, 0.2, h), object="book")
+        glue = ([Contact(s.id, p.id, "fixed") for s in sides for p in (low, high)]
+                if shelf else [])
+        return finalize(Arrangement((*sides, low, high, book), (ground(),)), glue)
+
+    held = scene(True)
+    assert held.stability.stable and ("book", "high") not in find_contacts(held).lookup()
+    out, closed = close_hidden_gaps(held, blind)
+    assert closed == [] and ("book", "high") not in find_contacts(out).lookup()
+    loose = scene(False)
+    assert loose.stability.stable and ("book", "high") not in find_contacts(loose).lookup()
+    out, closed = close_hidden_gaps(loose, blind)
+    assert closed == ["high|book"] and ("book", "high") in find_contacts(out).lookup()
+
 def test_a_gap_the_camera_saw_the_floor_through_stays_open():
     # the books truly stand 15 mm apart and the camera looks down into the gap: the
     # floor seen between them says the gap is empty
