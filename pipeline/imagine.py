@@ -722,7 +722,11 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     extension: one box's face reaches past the other's far side (the top over the whole
     panel), then the other's face reaches it (the panel up to the top).  Both must be
     short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
-    touch.  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
+    touch.  Smallest added volume first, except that a part hanging above the other's
+    end grows down past it first where it can (a shelf's side panel, fitted down to the
+    top of the bottom board in front of it, reaches past the board and the board meets
+    its face, rather than the board sliding in under the panel and the panel standing on
+    it, out of the floor's reach).  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
     """
     from .contacts import candidate_pairs
     from .extend import Extension, Option
@@ -741,7 +745,7 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
         if ci.object is None or ci.object != cj.object or (i, j) in skip:
             continue
         tol = float(pair_tolerance(S[i], S[j]))
-        best = None
+        best, best_key = None, None
         for a, b in ((i, j), (j, i)):
             for axis in range(3):
                 u = R[a][:, axis]
@@ -772,8 +776,13 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                             if abs(float(sep[0])) > tol:
                                 continue
                             vol = x1.volume(S) + x2.volume(S)
-                            if best is None or vol < best.volume:
-                                best = Option("fixed", (x1, x2), vol)
+                            # a part hanging over the other's end grows down past it
+                            # (its bottom there is where the other hid it) rather than
+                            # the other sliding in under it
+                            down = int(not (sgn * u[2] < -0.9 and _z_range(
+                                arr.cuboids[a])[0] >= _z_range(arr.cuboids[b])[1] - tol))
+                            if best is None or (down, vol) < best_key:
+                                best, best_key = Option("fixed", (x1, x2), vol), (down, vol)
         if best is not None:
             out.append((i, j, best))
     return out

@@ -161,3 +161,23 @@ def test_a_hallucinated_box_is_not_widened_to_close_a_hidden_gap():
     out, closed = close_hidden_gaps(final, [view])
     assert closed == ["h1|h2"]
     assert out.cuboid("h1").size[0] + out.cuboid("h2").size[0] > 0.1 + 0.01
+
+
+def test_a_panel_fitted_down_to_a_boards_top_reaches_past_it_across_the_corner():
+    # a shelf's 7 mm side panel 2 cm past the end of its bottom board, fitted down to the
+    # board's top (1 cm above it: the board hid the rest).  Across the corner the join
+    # (as cheap either way round) slid the board in under the whole 7 mm panel, which
+    # then stood on the board's end, out of the floor's reach; the panel now grows down past the board and the board meets its face
+    from pipeline.imagine import _corner_joins
+
+    board = box("board", (0, 0, 0.1), (0.76, 0.3, 0.04), object="s")
+    panel = box("panel", (0.4035, 0, 0.13 + 0.64), (0.007, 0.3, 1.28), object="s")
+    arr = Arrangement((board, panel), (ground(),))
+    joins = _corner_joins(arr, 0.3, set())
+    assert len(joins) == 1
+    _, _, option = joins[0]
+    first, second = option.extensions
+    assert (first.box, first.axis, first.side) == (1, 2, 0)  # the panel, downwards
+    assert first.length >= 0.05 - 1e-9
+    assert (second.box, second.axis, second.side) == (0, 0, 1)  # the board, to the panel
+    assert abs(second.length - 0.02) < 1e-6
