@@ -100,6 +100,23 @@ def observed_points(views: list[DepthView], stride: int = YAW_FIT_STRIDE
     return np.concatenate(pts), np.concatenate(tol)
 
 
+_CLOUD: list = []  #: the views of the last :func:`_observed_cloud` call and its result
+
+
+def _observed_cloud(views: list[DepthView]):
+    """(points, tolerances, KD-tree) of :func:`observed_points`, kept for the views of
+    the last call (:func:`align_boxes` asks three times for the same views)."""
+    from scipy.spatial import cKDTree
+
+    if _CLOUD and len(_CLOUD[0]) == len(views) and all(
+            a is b for a, b in zip(_CLOUD[0], views, strict=True)):
+        return _CLOUD[1]
+    pts, tol = observed_points(views)
+    out = (pts, tol, cKDTree(pts) if len(pts) else None)
+    _CLOUD[:] = [tuple(views), out]
+    return out
+
+
 def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_MAX_DEG,
              step_deg: float = YAW_FIT_STEP_DEG, gain: float = YAW_FIT_GAIN,
              min_points: int = YAW_FIT_MIN_POINTS) -> tuple[Arrangement, list[str]]:
@@ -114,16 +131,14 @@ def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_
     more) at another yaw takes the best one.  Boxes marked ``slanted`` or not upright
     are left alone.  Returns the arrangement and the ids turned.
     """
-    from scipy.spatial import cKDTree
 
     from .model import rotation_about_axis
 
     if not views:
         return arr, []
-    pts, tol = observed_points(views)
+    pts, tol, tree = _observed_cloud(views)
     if not len(pts):
         return arr, []
-    tree = cKDTree(pts)
     pad = float(tol.max())
     offsets = np.radians(np.arange(-max_deg, max_deg + 1e-9, step_deg))
     zero = int(np.argmin(np.abs(offsets)))
@@ -239,16 +254,14 @@ def yaws_from_supports(arr: Arrangement, views: list[DepthView],
     their object's shared yaw (a monitor's foot on a desk); boxes marked ``slanted`` or not upright, and boxes resting on
     nothing, are left alone.  Returns the arrangement and the ids turned.
     """
-    from scipy.spatial import cKDTree
 
     from .model import rotation_about_axis
 
     if not views:
         return arr, []
-    pts, tol = observed_points(views)
+    pts, tol, tree = _observed_cloud(views)
     if not len(pts):
         return arr, []
-    tree = cKDTree(pts)
     pad = float(tol.max())
     sweep = np.radians(np.arange(-90.0, 90.0, YAW_FIT_STEP_DEG))
     cubs = list(arr.cuboids)
@@ -300,7 +313,6 @@ def _object_yaw(cubs: list[Cuboid], idx: list[int], yaws: np.ndarray, mean: floa
     19 by the points of what stands around it), and ``mean`` is returned when no part
     holds any points either.
     """
-    from scipy.spatial import cKDTree
 
     parts = []
     for i, y in zip(idx, yaws, strict=True):
@@ -310,10 +322,9 @@ def _object_yaw(cubs: list[Cuboid], idx: list[int], yaws: np.ndarray, mean: floa
     ds = [d for _, d in parts]
     if not ds or max(ds) - min(ds) <= np.radians(YAW_FIT_STEP_DEG):
         return mean  # the parts agree: nothing to choose between
-    pts, tol = observed_points(views)
+    pts, tol, tree = _observed_cloud(views)
     if not len(pts):
         return mean
-    tree = cKDTree(pts)
     pad = float(tol.max())
     step = np.radians(YAW_FIT_STEP_DEG)
     sweep = mean + np.arange(min(ds), max(ds) + 1e-9, step)
