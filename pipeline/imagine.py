@@ -76,6 +76,12 @@ YAW_FIT_GAIN = 1.15
 YAW_FIT_MIN_POINTS = 50
 #: Pixel stride of the observed points used (every n-th row and column).
 YAW_FIT_STRIDE = 2
+#: An upright box whose bottom lies within this many metres of another upright box's
+#: top, over it, rests on it (:func:`yaws_from_supports`) ...
+SUPPORT_YAW_GAP = 0.03
+#: ... and takes its yaw when the points it holds at that yaw fall short of the most it
+#: holds at any yaw by at most this many times their Poisson noise.
+SUPPORT_YAW_SIGMAS = 2.0
 
 
 def observed_points(views: list[DepthView], stride: int = YAW_FIT_STRIDE
@@ -94,6 +100,23 @@ def observed_points(views: list[DepthView], stride: int = YAW_FIT_STRIDE
     return np.concatenate(pts), np.concatenate(tol)
 
 
+_CLOUD: list = []  #: the views of the last :func:`_observed_cloud` call and its result
+
+
+def _observed_cloud(views: list[DepthView]):
+    """(points, tolerances, KD-tree) of :func:`observed_points`, kept for the views of
+    the last call (:func:`align_boxes` asks three times for the same views)."""
+    from scipy.spatial import cKDTree
+
+    if _CLOUD and len(_CLOUD[0]) == len(views) and all(
+            a is b for a, b in zip(_CLOUD[0], views, strict=True)):
+        return _CLOUD[1]
+    pts, tol = observed_points(views)
+    out = (pts, tol, cKDTree(pts) if len(pts) else None)
+    _CLOUD[:] = [tuple(views), out]
+    return out
+
+
 def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_MAX_DEG,
              step_deg: float = YAW_FIT_STEP_DEG, gain: float = YAW_FIT_GAIN,
              min_points: int = YAW_FIT_MIN_POINTS) -> tuple[Arrangement, list[str]]:
@@ -108,16 +131,14 @@ def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_
     more) at another yaw takes the best one.  Boxes marked ``slanted`` or not upright
     are left alone.  Returns the arrangement and the ids turned.
     """
-    from scipy.spatial import cKDTree
 
     from .model import rotation_about_axis
 
     if not views:
         return arr, []
-    pts, tol = observed_points(views)
+    pts, tol, tree = _observed_cloud(views)
     if not len(pts):
         return arr, []
-    tree = cKDTree(pts)
     pad = float(tol.max())
     offsets = np.radians(np.arange(-max_deg, max_deg + 1e-9, step_deg))
     zero = int(np.argmin(np.abs(offsets)))
@@ -149,6 +170,176 @@ def fit_yaws(arr: Arrangement, views: list[DepthView], max_deg: float = YAW_FIT_
     return arr.with_(cuboids=tuple(cubs)), turned
 
 
+def _yaw_counts(c: Cuboid, pts: np.ndarray, tol: np.ndarray, near: list[int],
+                offsets: np.ndarray) -> np.ndarray:
+    """Observed points (grown by their tolerance) box ``c`` holds turned by each of
+    ``offsets`` (radians) about the vertical through its centre."""
+    d = pts[near] - c.center
+    lim = c.size / 2 + tol[near][:, None]
+    cos, sin = np.cos(offsets), np.sin(offsets)
+    inside = np.zeros(len(offsets), int)
+    for k in range(len(offsets)):
+        # the box turned by +a about z holds the points turned by -a
+        q = np.stack([cos[k] * d[:, 0] + sin[k] * d[:, 1],
+                      -sin[k] * d[:, 0] + cos[k] * d[:, 1], d[:, 2]], axis=1) @ c.rotation
+        inside[k] = int(np.count_nonzero(np.all(np.abs(q) <= lim, axis=1)))
+    return inside
+
+
+def _yaw_of(R: np.ndarray) -> float:
+    """The yaw of an upright frame (the angle of a horizontal axis), radians."""
+    h = R[:, int(np.argmin(np.abs(R[2])))]
+    return float(np.arctan2(h[1], h[0]))
+
+
+def _resting_on(arr: Arrangement, c: Cuboid, gap: float) -> Cuboid | None:
+    """The upright box whose top face ``c``'s bottom lies on: within ``gap`` of its
+    height, ``c``'s footprint over it or within ``gap`` of its edge (the support's far
+    end may be hidden); the highest such when several, None when none."""
+    bottom = c.center[2] - 0.5 * float(np.abs(c.rotation[2]) @ c.size)
+    best, best_top = None, -np.inf
+    for s in arr.cuboids:
+        if s.id == c.id or abs(s.rotation[2]).max() < 1 - 1e-9:
+            continue
+        top = s.center[2] + 0.5 * float(np.abs(s.rotation[2]) @ s.size)
+        if abs(bottom - top) > gap or top <= best_top:
+            continue
+        local = (c.center - s.center) @ s.rotation
+        horizontal = np.abs(s.rotation[2]) < 0.5
+        reach = 0.5 * np.abs(s.rotation.T @ c.rotation) @ c.size + gap  # c's footprint
+        if np.all(np.abs(local[horizontal]) <= s.size[horizontal] / 2 + reach[horizontal]):
+            best, best_top = s, top
+    return best
+
+
+def _not_in_others(arr: Arrangement, c: Cuboid, pts: np.ndarray, near: list[int]
+                   ) -> list[int]:
+    """The points ``near`` that lie in no other box of ``arr`` than ``c`` (the points
+    another box holds are its evidence: turned across a row of books, a book's box
+    would hold its neighbours' spines)."""
+    keep = np.ones(len(near), bool)
+    P = pts[near]
+    reach = float(np.linalg.norm(c.size)) / 2
+    for o in arr.cuboids:
+        if o.id == c.id or np.linalg.norm(o.center - c.center) > reach + float(
+                np.linalg.norm(o.size)) / 2:
+            continue
+        q = (P - o.center) @ o.rotation
+        keep &= ~np.all(np.abs(q) <= o.size / 2, axis=1)
+    return [n for n, k in zip(near, keep, strict=True) if k]
+
+
+def yaws_from_supports(arr: Arrangement, views: list[DepthView],
+                       gap: float = SUPPORT_YAW_GAP, sigmas: float = SUPPORT_YAW_SIGMAS
+                       ) -> tuple[Arrangement, list[str]]:
+    """Give an upright box whose yaw the points leave open the yaw of the box it rests on.
+
+    The yaw of a box fitted to a few hundred points on one face (a book's spine seen
+    between its neighbours) is hardly determined by them: :func:`fit_yaws`'s counts of
+    the points it holds vary by less than their counting noise over tens of degrees,
+    and the fitted box can come 40 degrees off the board it stands on -- a sliver at
+    that yaw cannot be given its depth and stands only held from above.  Here the
+    counts (of the points no other box holds, :func:`_not_in_others`) are taken at every
+    yaw (modulo 180 degrees) and at the two yaws of the box it
+    rests on (:func:`_resting_on`: its bottom within ``gap`` of that box's top, its
+    footprint over it, as Jia et al. orient boxes by their supporting relations); of
+    those the smaller turn is taken unless the other holds more points by over their
+    Poisson noise (a spine's strip holds nearly as many either way); when that one
+    holds at least the most held at any yaw less ``sigmas`` times its
+    Poisson noise (the square root of the count), the box takes it.  A box the points
+    pin (a board, a crate seen on two faces) keeps its yaw unless it is the support's.
+    Only a box standing on a narrow end (a horizontal extent below
+    :data:`THIN_FRACTION` of its height: a book on a shelf, not a book lying in a pile,
+    whose top face shows its yaw) is turned; parts of an object with other parts keep
+    their object's shared yaw (a monitor's foot on a desk); boxes marked ``slanted`` or not upright, and boxes resting on
+    nothing, are left alone.  Returns the arrangement and the ids turned.
+    """
+
+    from .model import rotation_about_axis
+
+    if not views:
+        return arr, []
+    pts, tol, tree = _observed_cloud(views)
+    if not len(pts):
+        return arr, []
+    pad = float(tol.max())
+    sweep = np.radians(np.arange(-90.0, 90.0, YAW_FIT_STEP_DEG))
+    cubs = list(arr.cuboids)
+    turned = []
+    for i, c in enumerate(arr.cuboids):
+        if (c.extra.get("slanted") or abs(c.rotation[2]).max() < 1 - 1e-9
+                or not _single_part(arr, c)):
+            continue
+        up = int(np.argmax(np.abs(c.rotation[2])))
+        if np.delete(c.size, up).min() >= THIN_FRACTION * c.size[up]:
+            continue  # not standing on its narrow end: its top face shows its yaw
+        s = _resting_on(arr, c, gap)
+        if s is None or s.extra.get("slanted"):
+            continue
+        d = (_yaw_of(s.rotation) - _yaw_of(c.rotation) + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        if abs(d) <= np.radians(YAW_FIT_STEP_DEG):
+            continue
+        near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
+        near = _not_in_others(arr, c, pts, near)
+        if not near:
+            continue
+        to_support = np.array([d, d + np.pi / 2 if d < 0 else d - np.pi / 2])
+        at = _yaw_counts(c, pts, tol, near, to_support)
+        # the smaller turn unless the points favour the other beyond their noise
+        best = int(at[1] > at[0] + np.sqrt(max(int(at[1]), 1)))
+        most = int(_yaw_counts(c, pts, tol, near, sweep).max())
+        if at[best] < most - sigmas * np.sqrt(most):
+            continue
+        cubs[i] = c.with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], to_support[best])
+                          @ c.rotation)
+        turned.append(c.id)
+    return arr.with_(cuboids=tuple(cubs)), turned
+
+
+def _object_yaw(cubs: list[Cuboid], idx: list[int], yaws: np.ndarray, mean: float,
+                yaw_deg: float, views: list[DepthView]) -> float:
+    """The yaw the upright parts ``idx`` of one object share, fitted to the views.
+
+    Each part fitted on its own (:func:`fit_yaws`) turns only when the points clearly
+    favour another yaw; a board 15 degrees off, whose top holds 1.14 times the points
+    turned back, stays, and the object's volume-weighted ``mean`` yaw then lands
+    5 degrees off with the heavy boards (the shelf's far side panel pokes into its bottom
+    board's end).  When the parts within ``yaw_deg`` of ``mean`` disagree (by more than
+    :data:`YAW_FIT_STEP_DEG`), every yaw between the least and the greatest of theirs is
+    tried for all of them at once (each turned about its own centre) and the yaw holding
+    the most observed points in all of them together (the middle of their plateau, as
+    in :func:`fit_yaws`) is returned.  Parts that agree keep ``mean``: their summed
+    counts may well peak elsewhere (a room's shelf, fitted at 2 degrees, would turn to
+    19 by the points of what stands around it), and ``mean`` is returned when no part
+    holds any points either.
+    """
+
+    parts = []
+    for i, y in zip(idx, yaws, strict=True):
+        d = (y - mean + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        if abs(d) <= np.radians(yaw_deg) and abs(cubs[i].rotation[2]).max() > 1 - 1e-9:
+            parts.append((i, float(d)))
+    ds = [d for _, d in parts]
+    if not ds or max(ds) - min(ds) <= np.radians(YAW_FIT_STEP_DEG):
+        return mean  # the parts agree: nothing to choose between
+    pts, tol, tree = _observed_cloud(views)
+    if not len(pts):
+        return mean
+    pad = float(tol.max())
+    step = np.radians(YAW_FIT_STEP_DEG)
+    sweep = mean + np.arange(min(ds), max(ds) + 1e-9, step)
+    total = np.zeros(len(sweep), int)
+    for i, d in parts:
+        c = cubs[i]
+        near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
+        if near:
+            total += _yaw_counts(c, pts, tol, near, sweep - (mean + d))
+    if total.max() <= 0:
+        return mean
+    top = np.flatnonzero(total >= total.max() - max(1, 0.005 * total.max()))
+    return float(sweep[int(top[len(top) // 2])])
+
+
 def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
                 yaw_deg: float = OBJECT_YAW_MAX_DEG,
                 views: list[DepthView] | None = None) -> tuple[Arrangement, int]:
@@ -159,8 +350,11 @@ def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
     ``slanted`` and left alone); with ``views``, upright boxes then take the yaw that
     fits the observed points best (:func:`fit_yaws`); and the parts of one object whose
     yaws (modulo 90 degrees) lie within ``yaw_deg`` of the object's volume-weighted mean
-    yaw take that yaw: a chair's legs and seat share one frame.  Returns the arrangement
-    and the number of boxes turned.
+    yaw take that yaw (with ``views``, the yaw near it that fits their points together
+    best, :func:`_object_yaw`): a chair's legs and seat share one frame; with ``views``
+    boxes whose yaw the points leave open then take that of the box they rest on
+    (:func:`yaws_from_supports`).  Returns the arrangement and the number of boxes
+    turned.
     """
     from .model import rotation_about_axis
 
@@ -196,16 +390,23 @@ def align_boxes(arr: Arrangement, max_deg: float = ALIGN_MAX_DEG,
             weights.append(float(np.prod(cubs[i].size)))
         yaws = np.array(yaws)
         mean = np.angle(np.sum(np.array(weights) * np.exp(4j * yaws))) / 4.0
+        if views:
+            mean = _object_yaw(cubs, idx, yaws, mean, yaw_deg, views)
         for i, y in zip(idx, yaws, strict=True):
             d = (y - mean + np.pi / 4) % (np.pi / 2) - np.pi / 4
             if 1e-9 < abs(d) <= np.radians(yaw_deg) and abs(cubs[i].rotation[2]).max() > 1 - 1e-9:
                 cubs[i] = cubs[i].with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], -d)
                                         @ cubs[i].rotation)
                 turned.add(i)
+    if views:
+        fitted, ids = yaws_from_supports(arr.with_(cuboids=tuple(cubs)), views)
+        cubs = list(fitted.cuboids)
+        turned |= {arr.index[k] for k in ids}
     return arr.with_(cuboids=tuple(cubs)), len(turned)
 
 
-def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement, int]:
+def repair_overlaps(arr: Arrangement, max_rounds: int = 10,
+                    views: list[DepthView] | None = None) -> tuple[Arrangement, int]:
     """Remove overlaps between initial boxes (they cannot be contacts).
 
     Two overlapping boxes of the same object with the same axes are one part seen as
@@ -224,9 +425,16 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
     stood it on the book (the panel fused to the board under the book then clamps the
     book, which only friction from that clamp holds: both engines drop it).  Such a weak
     box turned more than :data:`SQUARE_MIN_DEG` against the strong one first takes its
-    axes (:func:`_square_to`).  A box reaching below a support plane loses the part
+    axes (:func:`_square_to`).  With ``views``, two thin boxes that are both slabs seen
+    face-on (:func:`_face_on_axis`) are never cleared along the viewing direction: the
+    camera saw both fronts, so neither stands behind the other (the one behind would
+    have been hidden where they overlap), and they give way sideways even where a few
+    millimetres of depth would have cost a smaller share; two thin boxes standing side
+    by side (:func:`_side_by_side`) are never cleared from below or above.  A box
+    reaching below a support plane loses the part
     below it.
     """
+    eye = np.asarray(views[0].T_world_cam, float)[:3, 3] if views else None
     repaired = 0
     floor = next((float(s.point[2]) for s in arr.supports
                   if s.id == "ground" and s.normal[2] > 0.99), None)
@@ -257,12 +465,20 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
             else:
                 ri, rj = _relative_overlap(ci, cj), _relative_overlap(cj, ci)
                 by_share = min(ri, rj) > 0.5
+                skip = None
                 side = False
                 if by_share:  # thin boxes: clear through the face that costs least of them
                     # (through their sides when they stand side by side on one surface)
                     side = _side_by_side(ci, cj)
-                    ri, rj = (_relative_overlap(ci, cj, True, side),
-                              _relative_overlap(cj, ci, True, side))
+                    if eye is not None:
+                        ai, aj = _face_on_axis(ci, eye), _face_on_axis(cj, eye)
+                        if (ai is not None and aj is not None
+                                and abs(ci.rotation[:, ai] @ cj.rotation[:, aj]) > 0.9):
+                            skip = (ai, aj)
+                    ri = _relative_overlap(ci, cj, True, None if skip is None else skip[0],
+                                           side)
+                    rj = _relative_overlap(cj, ci, True, None if skip is None else skip[1],
+                                           side)
                     # ... unless one was fitted to far more points: the other gives way
                     pi, pj = _points(ci), _points(cj)
                     if pj >= EVIDENCE_RATIO * pi:
@@ -274,15 +490,18 @@ def repair_overlaps(arr: Arrangement, max_rounds: int = 10) -> tuple[Arrangement
                     if not _penetrating(ci, cj):
                         repaired += 1
                         continue
+                si, sj = (None, None) if skip is None else skip
                 if min(ri, rj) <= 0.5:  # the box that loses least of itself gives way
                     if ri <= rj:
-                        cubs[i] = _shrink_against(ci, cj, by_share=by_share, sideways=side)
+                        cubs[i] = _shrink_against(ci, cj, by_share=by_share, skip=si,
+                                                  sideways=side)
                     else:
-                        cubs[j] = _shrink_against(cj, ci, by_share=by_share, sideways=side)
+                        cubs[j] = _shrink_against(cj, ci, by_share=by_share, skip=sj,
+                                                  sideways=side)
                 else:
-                    cubs[i] = _shrink_against(ci, cj, share=0.5, by_share=by_share,
+                    cubs[i] = _shrink_against(ci, cj, share=0.5, by_share=by_share, skip=si,
                                               sideways=side)
-                    cubs[j] = _shrink_against(cj, ci, share=0.5, by_share=by_share,
+                    cubs[j] = _shrink_against(cj, ci, share=0.5, by_share=by_share, skip=sj,
                                               sideways=side)
             repaired += 1
         arr = arr.with_(cuboids=tuple(c for c in cubs if c is not None))
@@ -432,14 +651,16 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
     (the face that reaches least far in), and never by more than
     :data:`JOIN_TRIM_MAX_SHARE` of it.  With ``views``, two parts already held together
     through their object's other parts (a screen on its neck on its foot) are not joined
-    through space a view saw empty (:func:`pipeline.extend.prune_by_visibility`'s test);
+    through space a view saw empty (:func:`pipeline.extend.prune_by_visibility`'s test)
+    nor by an extension that runs along a third part touching both
+    (:func:`pipeline.search.along_link`);
     parts nothing else holds together are joined as before.  Two parts that no single
     extension joins may be joined across a corner by two short ones
     (:func:`_corner_joins`: a desk's panel just past the end of its top).  Smallest
     added volume first; returns the arrangement and ``"a+b"`` for each pair joined.
     """
     from .extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
-    from .search import short_join
+    from .search import along_link, short_join, touching_links
 
     if not any(c.object is not None for c in arr.cuboids):
         return arr, []
@@ -450,19 +671,23 @@ def join_parts(arr: Arrangement, max_rounds: int = 64, views: list[DepthView] | 
         trials = []
         held = _same_object_groups(arr) if views else {}
         reached = set()  # pairs that touch or that one extension joins
-        for e in pair_edges(arr, max_ext, same_object=True):
-            if not e.same_object or isinstance(e.b, str):
-                continue
+        edges = [e for e in pair_edges(arr, max_ext, same_object=True)
+                 if e.same_object and not isinstance(e.b, str)]
+        links = touching_links(edges)  # parts of one object touching each other
+        for e in edges:
             if e.touching or any(short_join(arr, o) for o in e.options):
                 reached.add((min(e.a, e.b), max(e.a, e.b)))
             if e.touching:
                 continue
             # parts already held together through their object's other parts (a screen
-            # on its neck on its foot) do not grow through space the sensor saw empty
+            # on its neck on its foot) do not grow through space the sensor saw empty,
+            # nor along a part that touches them both (beside the neck onto the foot)
             both = held and held.get(e.a) == held.get(e.b)
             trials += [(o.volume, e.a, e.b, o) for o in e.options
                        if o.extensions and short_join(arr, o)
-                       and not (both and _seen_through(arr, o.extensions, views, margin))]
+                       and not (both and (_seen_through(arr, o.extensions, views, margin)
+                                          or along_link(arr, o.extensions, links,
+                                                        e.a, e.b)))]
         for a, b, o in _corner_joins(arr, max_ext, reached):
             if not (held and held.get(a) == held.get(b)
                     and _seen_through(arr, o.extensions, views, margin)):
@@ -527,7 +752,11 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     extension: one box's face reaches past the other's far side (the top over the whole
     panel), then the other's face reaches it (the panel up to the top).  Both must be
     short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
-    touch.  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
+    touch.  Smallest added volume first, except that a part hanging above the other's
+    end grows down past it first where it can (a shelf's side panel, fitted down to the
+    top of the bottom board in front of it, reaches past the board and the board meets
+    its face, rather than the board sliding in under the panel and the panel standing on
+    it, out of the floor's reach).  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
     """
     from .contacts import candidate_pairs
     from .extend import Extension, Option
@@ -546,7 +775,7 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
         if ci.object is None or ci.object != cj.object or (i, j) in skip:
             continue
         tol = float(pair_tolerance(S[i], S[j]))
-        best = None
+        best, best_key = None, None
         for a, b in ((i, j), (j, i)):
             for axis in range(3):
                 u = R[a][:, axis]
@@ -577,8 +806,13 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                             if abs(float(sep[0])) > tol:
                                 continue
                             vol = x1.volume(S) + x2.volume(S)
-                            if best is None or vol < best.volume:
-                                best = Option("fixed", (x1, x2), vol)
+                            # a part hanging over the other's end grows down past it
+                            # (its bottom there is where the other hid it) rather than
+                            # the other sliding in under it
+                            down = int(not (sgn * u[2] < -0.9 and _z_range(
+                                arr.cuboids[a])[0] >= _z_range(arr.cuboids[b])[1] - tol))
+                            if best is None or (down, vol) < best_key:
+                                best, best_key = Option("fixed", (x1, x2), vol), (down, vol)
         if best is not None:
             out.append((i, j, best))
     return out
@@ -824,14 +1058,33 @@ def _points(c: Cuboid) -> float:
     return max(float(c.extra.get("points", 1)), 1.0)
 
 
-def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False, sideways: bool = False
+def _face_on_axis(c: Cuboid, eye: np.ndarray) -> int | None:
+    """The horizontal axis of ``c`` within 45 degrees of the horizontal viewing
+    direction from ``eye`` when ``c`` is a slab seen face-on along it (its extent there
+    below :data:`THIN_FRACTION` of its other horizontal extent), else None."""
+    look = c.center - eye
+    look[2] = 0.0
+    if np.linalg.norm(look) < 1e-9:
+        return None
+    look /= np.linalg.norm(look)
+    horizontal = [a for a in range(3) if abs(c.rotation[2, a]) <= 0.5]
+    for axis in horizontal:
+        width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
+        if (abs(float(c.rotation[:, axis] @ look)) >= np.cos(np.radians(45.0))
+                and c.size[axis] < THIN_FRACTION * width):
+            return axis
+    return None
+
+
+def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False,
+                  skip: int | None = None, sideways: bool = False
                   ) -> tuple[float, int, int] | None:
     """(overlap, axis, side) of the face of ``c`` reaching least far into ``other``
-    (``by_share``: whose retreat costs ``c`` the smallest share of its extent there;
-    ``sideways``: of its upright faces only)."""
+    (``by_share``: whose retreat costs ``c`` the smallest share of its extent there),
+    not along axis ``skip`` (``sideways``: of its upright faces only)."""
     best, least = None, None
     for ax in range(3):
-        if sideways and abs(c.rotation[2, ax]) > 0.5:
+        if ax == skip or (sideways and abs(c.rotation[2, ax]) > 0.5):
             continue
         for side in (0, 1):
             u = c.rotation[:, ax] * (1 if side else -1)
@@ -845,18 +1098,19 @@ def _overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False, sideways: bo
 
 
 def _relative_overlap(c: Cuboid, other: Cuboid, by_share: bool = False,
-                      sideways: bool = False) -> float:
+                      skip: int | None = None, sideways: bool = False) -> float:
     """The share of its extent ``c`` would lose to clear ``other`` (inf when it cannot)."""
-    best = _overlap_face(c, other, by_share, sideways)
+    best = _overlap_face(c, other, by_share, skip, sideways)
     return float("inf") if best is None else best[0] / float(c.size[best[1]])
 
 
 def _shrink_against(c: Cuboid, other: Cuboid, share: float = 1.0,
-                    by_share: bool = False, sideways: bool = False) -> Cuboid:
+                    by_share: bool = False, skip: int | None = None,
+                    sideways: bool = False) -> Cuboid:
     """Move the face of ``c`` that overlaps ``other`` back by ``share`` of the overlap
     (at most half of ``c``'s extent there)."""
     tol = float(pair_tolerance(c.size[None], other.size[None])[0])
-    best = _overlap_face(c, other, by_share, sideways)
+    best = _overlap_face(c, other, by_share, skip, sideways)
     if best is None:
         return c
     overlap, ax, side = best
@@ -1114,9 +1368,12 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
     stands; parts of one object that meet so are fused (parts already fused into one
     rigid body are left as they are: a chair's back fixed to its seat does not grow down
     to a leg).  A box's face just off a wall is pushed to the wall the same way (the
-    wall behind a book on a wall shelf is hidden by the book).  Without views (a bare
-    point cloud) nothing is closed.  Returns the arrangement and the ``a|b`` pairs closed
-    (``b`` may be a wall's id).
+    wall behind a book on a wall shelf is hidden by the book).  A hallucinated box
+    (:mod:`pipeline.symmetry`: a chair's hidden back leg, a copy of its front leg) is not
+    pushed: its faces were not fitted to noisy points, and widening it to a part it
+    happens to stand near (the chair's back) adds a contact no data suggests.  Without
+    views (a bare point cloud) nothing is closed.  Returns the arrangement and the
+    ``a|b`` pairs closed (``b`` may be a wall's id).
     """
     from .extend import (
         FREE_FRACTION_MAX,
@@ -1169,6 +1426,8 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         cid = final.cuboids[x.box].id
         if (cid, x.axis, x.side) in grown or tuple(sorted((a, b))) in touching:
             continue
+        if final.cuboids[x.box].extra.get("hallucinated"):
+            continue  # a copy of a seen part, not a fit to noisy points: no noise to undo
         oa = final.cuboid(a).object
         ob = None if is_support_id(b) else final.cuboid(b).object
         if oa is not None and oa == ob and rigid[a] == rigid[b]:
@@ -1625,7 +1884,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         c if c.observed is not None else c.with_(observed=ObservedBox(c.center, c.size))
         for c in arr.cuboids))
     arr, aligned = align_boxes(arr, views=views)
-    arr, repaired = repair_overlaps(arr)
+    arr, repaired = repair_overlaps(arr, views=views)
     timings["repair"] = time.perf_counter() - t
 
     t = time.perf_counter()

@@ -54,7 +54,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .contacts import ContactSet, changed_cuboids, find_contacts, update_contacts
+from .contacts import (
+    ContactSet,
+    changed_cuboids,
+    find_contacts,
+    pair_tolerance,
+    sat_separation,
+    update_contacts,
+)
 from .errors import InputError
 from .extend import Edge, Option, apply_offsets, offsets_of
 from .model import Arrangement, Contact, StabilitySummary
@@ -123,9 +130,49 @@ def short_join(arr: Arrangement, o: Option) -> bool:
         x.length <= SHORT_JOIN * float(arr.sizes[x.box, x.axis]) for x in o.extensions)
 
 
-def _short_join(arr: Arrangement, e: Edge) -> bool:
-    """Whether same-object edge ``e`` has a short join."""
-    return e.same_object and any(short_join(arr, o) for o in e.options)
+def _short_join(arr: Arrangement, e: Edge, links: dict[int, set[int]] | None = None
+                ) -> bool:
+    """Whether same-object edge ``e`` has a short join (with ``links``, one that does
+    not run along a part touching both, :func:`along_link`)."""
+    return e.same_object and any(
+        short_join(arr, o) and not (links and along_link(arr, o.extensions, links, e.a, e.b))
+        for o in e.options)
+
+
+def touching_links(edges: list[Edge]) -> dict[int, set[int]]:
+    """Box index -> the boxes of its object it touches (the touching same-object edges)."""
+    links: dict[int, set[int]] = {}
+    for e in edges:
+        if e.same_object and e.touching and not isinstance(e.b, str):
+            links.setdefault(e.a, set()).add(e.b)
+            links.setdefault(e.b, set()).add(e.a)
+    return links
+
+
+def along_link(arr: Arrangement, extensions, links: dict[int, set[int]], a: int,
+                b: int) -> bool:
+    """Whether the space an extension adds touches a part that touches both ``a`` and
+    ``b`` (``links``: who touches whom): a join grown alongside the part that already
+    joins the two (a screen, deepened to its neck, grown down beside it onto the foot
+    the neck stands on) would be a second joint parallel to it."""
+    third = (links.get(a, set()) & links.get(b, set())) - {a, b}
+    if not third:
+        return False
+    for x in extensions:
+        c = arr.cuboids[x.box]
+        u = c.rotation[:, x.axis] * (1.0 if x.side else -1.0)
+        size = c.size.copy()
+        size[x.axis] = x.length
+        slab = c.with_(center=c.center + u * (c.size[x.axis] + x.length) / 2, size=size)
+        for t in third:
+            o = arr.cuboids[t]
+            tol = float(pair_tolerance(slab.size, o.size))
+            sep, _, _ = sat_separation(slab.center[None], slab.rotation[None],
+                                       slab.size[None] / 2, o.center[None], o.rotation[None],
+                                       o.size[None] / 2, np.array([tol]))
+            if float(sep[0]) <= tol:
+                return True
+    return False
 
 
 def _option_cost(e: Edge, o: Option, eager: bool = False) -> tuple[int, int, float]:
@@ -156,7 +203,8 @@ class _Group:
             fixed_edges.append(e)
         # decide the most expensive edges first; options cheapest first
         self.edges = sorted(fixed_edges, key=lambda e: -max(o.volume for o in e.options))
-        eager = {id(e) for e in self.edges if _short_join(arr, e)}
+        links = touching_links(self.edges)
+        eager = {id(e) for e in self.edges if _short_join(arr, e, links)}
         self._cost = lambda e, o: _option_cost(e, o, id(e) in eager)
         self.options = [sorted(e.options, key=lambda o: self._cost(e, o)) for e in self.edges]
         # per option: (fixed, apart, ((face, length), ...)); per face the two extents
