@@ -128,6 +128,23 @@ def _over(g0: np.ndarray, g1: np.ndarray, horiz: list[int], lo: np.ndarray,
             & (g1 > lo[horiz[1]]) & (g1 < hi[horiz[1]]))
 
 
+def _between(c: Cuboid, a: Cuboid, b: Cuboid, lo: float, hi: float, pad: float = 0.01
+             ) -> bool:
+    """Whether ``c`` stands in the gap from height ``lo`` to ``hi`` between ``b`` below
+    and ``a`` above: it spans half the gap's height, and its footprint overlaps both
+    theirs or comes within ``pad`` of them (world-aligned bounds)."""
+    z = c.corners()[:, 2]
+    if min(z.max(), hi) - max(z.min(), lo) < 0.5 * (hi - lo):
+        return False
+    cx = c.corners()[:, :2]
+    for other in (a, b):
+        ox = other.corners()[:, :2]
+        if (np.any(cx.max(axis=0) + pad < ox.min(axis=0))
+                or np.any(ox.max(axis=0) + pad < cx.min(axis=0))):
+            return False
+    return True
+
+
 def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                       ) -> tuple[Arrangement, list[str]]:
     """Add the hidden part that holds one part of an object above another.
@@ -142,8 +159,9 @@ def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 
     at any height (sampled every :data:`CONNECTOR_STEP` metres), from the lower part's top
     to the upper part's bottom: where the neck is, and what it hides.  Only gaps of at
     least :data:`CONNECTOR_MIN_GAP` and at most :data:`CONNECTOR_MAX_GAP_REL` of the upper
-    part's height are bridged; the new
-    part carries ``extra["hallucinated"]`` and ``extra["connector"]`` and is kept only if
+    part's height are bridged, and only where no other part of the object already
+    stands in the gap over both (:func:`_between`: the neck, seen, but apart from the
+    screen after a noisy fit); the new part carries ``extra["hallucinated"]`` and ``extra["connector"]`` and is kept only if
     it does not interpenetrate anything.  Returns (arrangement, new ids).
     """
     if not views:
@@ -173,6 +191,9 @@ def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 
             tol = float(pair_tolerance(a.size[None], b.size[None])[0])
             if not max(tol, CONNECTOR_MIN_GAP) < gap <= CONNECTOR_MAX_GAP_REL * a.size[ka]:
                 continue
+            if any(_between(arr.cuboids[m], a, b, b_hi, a_lo) for m in by_object[a.object]
+                   if m not in (i, j)):
+                continue  # a part of theirs already stands in the gap (the neck, seen)
             # a stretched down to b would fill the gap under its seen face: beside b (over
             # b the gap is too close to b's top for the sensor to tell) was it seen empty?
             o = a.observed
