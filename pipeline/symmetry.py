@@ -368,11 +368,14 @@ def _twin_parts(arr: Arrangement, added: list[Cuboid], views: list[DepthView],
         if c.object is not None:
             by_object.setdefault(c.object, []).append(c)
     new: list[Cuboid] = []
+    tops = {obj: _top_of(members) for obj, members in by_object.items()}
     for obj, members in sorted(by_object.items()):
-        top = _top_of(members)
+        top = tops[obj]
         for other, theirs in sorted(by_object.items()):
-            twin_top = _top_of(theirs)
-            if other == obj or len(theirs) <= len(members) or not _twins(top, twin_top):
+            if other == obj or len(theirs) <= len(members):
+                continue
+            twin_top = tops[other]
+            if not _twins(top, twin_top):
                 continue
             shift = top.center - twin_top.center
             for part in theirs:
