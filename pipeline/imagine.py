@@ -250,9 +250,7 @@ def yaws_from_supports(arr: Arrangement, views: list[DepthView],
     pin (a board, a crate seen on two faces) keeps its yaw unless it is the support's.
     Only a box standing on a narrow end (a horizontal extent below
     :data:`THIN_FRACTION` of its height: a book on a shelf, not a book lying in a pile,
-    whose top face shows its yaw) that carries nothing (a box resting on it has a say in
-    its yaw: the middle box of mOSD test16, turned so, could no longer hold the box
-    above without glue) is turned; parts of an object with other parts keep
+    whose top face shows its yaw) is turned; parts of an object with other parts keep
     their object's shared yaw (a monitor's foot on a desk); boxes marked ``slanted`` or not upright, and boxes resting on
     nothing, are left alone.  Returns the arrangement and the ids turned.
     """
@@ -275,8 +273,6 @@ def yaws_from_supports(arr: Arrangement, views: list[DepthView],
         up = int(np.argmax(np.abs(c.rotation[2])))
         if np.delete(c.size, up).min() >= THIN_FRACTION * c.size[up]:
             continue  # not standing on its narrow end: its top face shows its yaw
-        if any(_resting_on(arr, o, gap) is c for o in arr.cuboids if o is not c):
-            continue  # it carries a box: its yaw is the one that holds that box up
         s = _resting_on(arr, c, gap)
         if s is None or s.extra.get("slanted"):
             continue
