@@ -45,7 +45,7 @@ from .extend import DepthView, candidate_edges, depth_noise, prune_by_visibility
 from .model import Arrangement, Contact, Cuboid, ObservedBox, is_support_id
 from .refine import refine
 from .search import search
-from .snap import close_gaps
+from .snap import close_gaps, close_pair
 from .symmetry import hallucinate, hidden_connectors
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
@@ -1255,6 +1255,13 @@ GAP_CLOSE = 0.02
 #: ... and gaps between a box and a wall up to this many times as long (a wall is seen
 #: as a plane fitted to many points; the box's back face is a guess from its front).
 WALL_GAP_CLOSE_REL = 1.5
+#: A box's top is raised to the underside of a box above it across a hidden gap up to
+#: this long (metres) when the box above rests on a neighbour that stands on the same
+#: level (a row of boxes, a bridge's two pillars: the fitted heights of two supports
+#: differ by the noise of two fits, and the upper box rests on the taller one) ...
+LEVEL_GAP_CLOSE = 0.04
+#: ... where the two bottoms are within this distance (metres).
+LEVEL_TOL = 0.015
 #: :func:`close_hidden_gaps` pushes a box's own face to the other box (beyond the pair's
 #: candidate extensions) only between faces the sensor saw: within this distance
 #: (metres) of where their box's observed face was (not one a deepening placed) ...
@@ -1276,6 +1283,32 @@ def _face_seen(c: Cuboid, u: np.ndarray) -> bool:
     face = float(c.center @ w) + float(c.size[axis]) / 2
     seen = float(np.asarray(o.center) @ w) + float(np.asarray(o.size)[axis]) / 2
     return face - seen <= SEEN_FACE_TOL
+
+
+def _levelled(arr: Arrangement, touching, x, other: int) -> bool:
+    """Whether extension ``x`` raises the top of its box to the underside of box
+    ``other``, which rests on a neighbour standing on the same level as the box
+    (:data:`LEVEL_TOL`): the gap between them is then a difference of fitted heights."""
+    from .model import box_corners
+
+    c = arr.cuboids[x.box]
+    if c.rotation[2, x.axis] * (1.0 if x.side else -1.0) < 0.9:
+        return False
+    z = box_corners(arr.centers, arr.rotations, arr.sizes)[..., 2]
+    bottom, top = z.min(axis=1), z.max(axis=1)
+    if bottom[other] < top[x.box]:
+        return False
+    lower, upper = arr.cuboids[x.box].id, arr.cuboids[other].id
+    index = {cid: k for k, cid in enumerate(arr.ids)}
+    for p, q in touching:
+        s = q if p == upper else p if q == upper else None
+        if s is None or s == lower or is_support_id(s):
+            continue
+        k = index[s]
+        if (abs(bottom[k] - bottom[x.box]) <= LEVEL_TOL
+                and abs(top[k] - bottom[other]) <= LEVEL_TOL):
+            return True
+    return False
 
 
 def _under_a_held_part(arr: Arrangement, a: str, b: str, x, rigid: dict[str, int]) -> bool:
@@ -1388,15 +1421,19 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         return final, []
     touching = find_contacts(final).lookup()
     opts = []
-    for e in pair_edges(final, gap):
+    level_gap = max(gap, LEVEL_GAP_CLOSE)
+    for e in pair_edges(final, level_gap):
         a, b = final.cuboids[e.a].id, final.cuboids[e.b].id
         if tuple(sorted((a, b))) in touching:
             continue
         ca, cb = final.cuboids[e.a], final.cuboids[e.b]
         pushes = {}
         for o in e.options:
-            if o.type == "touch" and len(o.extensions) == 1 and o.extensions[0].length <= gap:
-                x = o.extensions[0]
+            if o.type != "touch" or len(o.extensions) != 1:
+                continue
+            x = o.extensions[0]
+            if x.length <= gap or (x.length <= level_gap and _levelled(
+                    final, touching, x, e.b if x.box == e.a else e.a)):
                 pushes[(x.box, x.axis, x.side)] = x
         # each box's own face towards the other, where the candidates offer none
         # (between faces the sensor saw: not against a face a deepening guessed)
@@ -1444,6 +1481,14 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         cubs[x.box] = c.with_(center=c.center + u * x.length / 2, size=size)
         trial = final.with_(cuboids=tuple(cubs), stability=None)
         cs = find_contacts(trial)
+        if (any(cid in (p, q) for p, q, _ in cs.penetrations) and abs(u[2]) > 0.9
+                and not is_support_id(b)):
+            # the face carries (or rests on) a second box: level the boxes that touch
+            trial = close_pair(final, final.index[b if cid == a else a], x.box, u,
+                               x.length, x.length)
+            if trial is None:
+                continue
+            cs = find_contacts(trial)
         if any(cid in (p, q) for p, q, _ in cs.penetrations) or \
                 tuple(sorted((a, b))) not in cs.lookup():
             continue

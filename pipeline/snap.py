@@ -43,19 +43,30 @@ ROUNDS = 3
 GAP_DONE = 1e-9
 
 
-def _rows(arr: Arrangement, cs: ContactSet) -> np.ndarray:
-    """(M, 6K) gradient of every contact's gap in the centres and extents of the cuboids."""
+def _rows(arr: Arrangement, a: np.ndarray, b: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(M, 6K) gradient of the gaps of the contacts ``a[m]``-``b[m]`` (normal from ``b``
+    into ``a``; ``b >= K`` a support plane) in the centres and extents of the cuboids."""
     K = len(arr.cuboids)
     R = arr.rotations
-    J = np.zeros((cs.count, 6 * K))
-    for m in range(cs.count):
-        a, b, n = int(cs.a[m]), int(cs.b[m]), cs.normal[m]
-        J[m, 6 * a:6 * a + 3] = n
-        J[m, 6 * a + 3:6 * a + 6] = -0.5 * np.abs(R[a].T @ n)
-        if b < K:
-            J[m, 6 * b:6 * b + 3] = -n
-            J[m, 6 * b + 3:6 * b + 6] = -0.5 * np.abs(R[b].T @ n)
+    J = np.zeros((len(a), 6 * K))
+    for m in range(len(a)):
+        i, j, n = int(a[m]), int(b[m]), normal[m]
+        J[m, 6 * i:6 * i + 3] = n
+        J[m, 6 * i + 3:6 * i + 6] = -0.5 * np.abs(R[i].T @ n)
+        if j < K:
+            J[m, 6 * j:6 * j + 3] = -n
+            J[m, 6 * j + 3:6 * j + 6] = -0.5 * np.abs(R[j].T @ n)
     return J
+
+
+def _moved(arr: Arrangement, delta: np.ndarray) -> Arrangement | None:
+    """``arr`` with centres and extents changed by ``delta (K, 6)`` (None when a box
+    would shrink below half an extent)."""
+    sizes = arr.sizes + delta[:, 3:]
+    if np.any(sizes < 0.5 * arr.sizes):
+        return None
+    return arr.with_(cuboids=tuple(c.with_(center=c.center + delta[k, :3], size=sizes[k])
+                                   for k, c in enumerate(arr.cuboids)), stability=None)
 
 
 def _between_bodies(arr: Arrangement, cs: ContactSet) -> np.ndarray:
@@ -87,15 +98,13 @@ def close_gaps(arr: Arrangement) -> tuple[Arrangement, float]:
     pairs0 = set(cs0.pairs)
     current, cs = arr, cs0
     for _ in range(ROUNDS):
-        J = _rows(current, cs)
+        J = _rows(current, cs.a, cs.b, cs.normal)
         target = np.where(between, -cs.gap, 0.0)
         delta = np.linalg.lstsq(J, target, rcond=None)[0].reshape(-1, 6)
-        sizes = current.sizes + delta[:, 3:]
-        if np.any(sizes < 0.5 * current.sizes):
+        moved = _moved(current, delta)
+        if moved is None:
             return arr, 0.0
-        current = current.with_(cuboids=tuple(
-            c.with_(center=c.center + delta[k, :3], size=sizes[k])
-            for k, c in enumerate(current.cuboids)), stability=None)
+        current = moved
         cs = find_contacts(current)
         if cs.penetrations or set(cs.pairs) != pairs0:
             return arr, 0.0
@@ -105,4 +114,33 @@ def close_gaps(arr: Arrangement) -> tuple[Arrangement, float]:
     return current, worst
 
 
-__all__ = ["close_gaps"]
+def close_pair(arr: Arrangement, a: int, b: int, normal: np.ndarray, gap: float,
+               max_move: float) -> Arrangement | None:
+    """Close the gap ``gap`` between cuboids ``a`` and ``b`` (``normal`` from ``b`` into
+    ``a``) by the smallest change of all centres and extents that keeps every contact
+    of ``arr`` as it is (gap unchanged; the same least squares as :func:`close_gaps`).
+
+    Where one face cannot simply be pushed (a box's top raised to the box above would
+    reach into a second box it already carries), the change spreads over the boxes
+    that touch: the tops of a row of boxes meet at one level.  Returns None when the
+    result changes which other pairs touch, interpenetrates, moves a centre or a face
+    by more than ``max_move`` or shrinks a box below half an extent.
+    """
+    cs = find_contacts(arr)
+    n = np.asarray(normal, float)[None]
+    J = np.vstack([_rows(arr, cs.a, cs.b, cs.normal), _rows(arr, [a], [b], n)])
+    target = np.r_[np.zeros(cs.count), -float(gap)]
+    delta = np.linalg.lstsq(J, target, rcond=None)[0].reshape(-1, 6)
+    if np.abs(delta[:, :3]).max() + np.abs(delta[:, 3:]).max() / 2 > max_move:
+        return None
+    moved = _moved(arr, delta)
+    if moved is None:
+        return None
+    after = find_contacts(moved)
+    want = set(cs.lookup()) | {tuple(sorted((arr.cuboids[a].id, arr.cuboids[b].id)))}
+    if after.penetrations or set(after.lookup()) != want:
+        return None
+    return moved
+
+
+__all__ = ["close_gaps", "close_pair"]

@@ -70,3 +70,43 @@ def test_a_pillar_sunk_into_the_floor_tilts_the_deck_until_the_gap_is_closed(eng
     assert worst == pytest.approx(0.0028)
     assert check_stability(closed).stable
     assert settle(closed, engine).stable
+
+
+def _row_of_three(step: float) -> Arrangement:
+    """Three 20 cm crates in a row on the floor, the last ``step`` metres taller; one
+    crate rests across the first two, another on the third, its end ``step`` over the
+    second (the two supports' fitted heights differ by the noise of two fits)."""
+    return Arrangement((
+        box("l0", (0.2, 0, 0.1), (0.4, 0.3, 0.2)),
+        box("l1", (0.6, 0, 0.1), (0.4, 0.3, 0.2)),
+        box("l2", (1.0, 0, (0.2 + step) / 2), (0.4, 0.3, 0.2 + step)),
+        box("u0", (0.4, 0, 0.3), (0.4, 0.3, 0.2)),
+        box("u1", (0.85, 0, 0.3 + step), (0.4, 0.3, 0.2))), (ground(),))
+
+
+def test_close_pair_levels_a_row_so_the_upper_box_meets_both_supports():
+    # raising l1's top alone would drive it into u0, which it carries with l0; the
+    # smallest change that keeps every contact brings the three tops to one level
+    from pipeline.snap import close_pair
+
+    arr = _row_of_three(0.0045)
+    before = find_contacts(arr)
+    assert ("l1", "u1") not in before.lookup()
+    out = close_pair(arr, arr.index["u1"], arr.index["l1"], np.array([0.0, 0.0, 1.0]),
+                     0.0045, 0.0045)
+    assert out is not None
+    after = find_contacts(out)
+    assert set(after.lookup()) == set(before.lookup()) | {("l1", "u1")}
+    assert not after.penetrations
+    tops = [out.cuboid(k).center[2] + out.cuboid(k).size[2] / 2 for k in ("l0", "l1", "l2")]
+    assert max(tops) - min(tops) < 1e-9  # one level
+    for k in ("u0", "u1"):  # each upper box sits on that level
+        c = out.cuboid(k)
+        assert c.center[2] - c.size[2] / 2 == pytest.approx(tops[0], abs=1e-9)
+    for a, b in zip(arr.cuboids, out.cuboids, strict=True):  # nothing moved far
+        assert np.abs(a.center - b.center).max() <= 0.0045
+        assert np.abs(a.size - b.size).max() <= 0.0045 * 2
+    assert check_stability(out).stable
+    # a gap larger than the change allowed is left alone
+    assert close_pair(arr, arr.index["u1"], arr.index["l1"], np.array([0.0, 0.0, 1.0]),
+                      0.0045, 0.001) is None
