@@ -1506,7 +1506,7 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
 
 def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
                 tilt_deg: float | None = None, deadline: float = float("inf"),
-                max_steps: int = 8, max_group: int = 16, views: list[DepthView] | None = None,
+                max_steps: int = 4, max_group: int = 16, views: list[DepthView] | None = None,
                 margin: float = 0.0) -> tuple[Arrangement, int, int]:
     """Turn ``fixed`` contacts between different objects into ``touch`` where a box that
     was seen only in part can be completed so that the arrangement stands without them.
