@@ -1255,6 +1255,10 @@ GAP_CLOSE = 0.02
 #: ... and gaps between a box and a wall up to this many times as long (a wall is seen
 #: as a plane fitted to many points; the box's back face is a guess from its front).
 WALL_GAP_CLOSE_REL = 1.5
+#: A face at least this many square metres (the back of a sofa) is, like a wall, a plane
+#: fitted to many points: a box's own face is pushed to it across up to
+#: :data:`WALL_GAP_CLOSE_REL` times the gap between two boxes (:func:`_facing_push`).
+BROAD_FACE_AREA = 0.5
 #: A box's top is raised to the underside of a box above it across a hidden gap up to
 #: this long (metres) when the box above rests on a neighbour that stands on the same
 #: level (a row of boxes, a bridge's two pillars: the fitted heights of two supports
@@ -1328,12 +1332,21 @@ def _under_a_held_part(arr: Arrangement, a: str, b: str, x, rigid: dict[str, int
                                    and arr.cuboid(i).object == obj) > 1
 
 
-def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps: int = 32):
+def _broad_face(c: Cuboid, u: np.ndarray) -> bool:
+    """Whether the face of ``c`` whose outward normal is nearest ``u`` is at least
+    :data:`BROAD_FACE_AREA` square metres (the back of a sofa, a shelf's side panel)."""
+    axis = int(np.argmax(np.abs(c.rotation.T @ u)))
+    return float(np.prod(np.delete(c.size, axis))) >= BROAD_FACE_AREA
+
+
+def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps: int = 32,
+                 broad_len: float | None = None):
     """The shortest push of one face of box ``k`` that makes it just touch ``other`` (an
     :class:`pipeline.extend.Extension`), or None when no push of at most ``max_len``
     does.  Only faces that face one of ``other``'s faces the sensor saw are pushed
     (:func:`_face_seen`, :data:`GAP_FACE_COS`; the pushed face may be a guess, a
-    deepened cushion's rear face).  A cushion a few degrees off its sofa's
+    deepened cushion's rear face).  Towards a broad face of ``other``
+    (:func:`_broad_face`) the push may be ``broad_len`` long.  A cushion a few degrees off its sofa's
     back in yaw: the back's corners reach past the cushion's rear face plane, so the
     candidate edges offer only to push the back (its whole face, into the arms beside
     it).  The length is found on a grid of ``steps`` and refined on a second one
@@ -1351,6 +1364,8 @@ def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps:
                 faces.append((axis, side, u))
     if not faces:
         return None
+    reach = np.array([broad_len if broad_len is not None and _broad_face(other, -u)
+                      else max_len for _, _, u in faces])
     tol = float(pair_tolerance(c.size[None], other.size[None])[0])
 
     def first_touch(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -1372,11 +1387,11 @@ def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, steps:
         return np.where(meet.any(axis=1), L[np.arange(len(L)), np.argmax(meet, axis=1)], np.inf)
 
     zero = np.zeros(len(faces))
-    coarse = first_touch(zero, np.full(len(faces), max_len))
+    coarse = first_touch(zero, reach)
     ok = np.isfinite(coarse)
     if not ok.any():
         return None
-    step = max_len / steps
+    step = reach / steps
     fine = first_touch(np.where(ok, np.maximum(coarse - step, 0.0), 0.0),
                        np.where(ok, coarse, step))
     fine = np.where(ok, np.minimum(fine, coarse), np.inf)
@@ -1440,7 +1455,7 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         for k, other in ((e.a, cb), (e.b, ca)):
             if any(key[0] == k for key in pushes):
                 continue
-            x = _facing_push(final, k, other, gap)
+            x = _facing_push(final, k, other, gap, broad_len=WALL_GAP_CLOSE_REL * gap)
             if x is not None:
                 pushes[(x.box, x.axis, x.side)] = x
         opts += [(x.length, a, b, x) for x in pushes.values()]
