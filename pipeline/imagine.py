@@ -1259,6 +1259,9 @@ WALL_GAP_CLOSE_REL = 1.5
 #: fitted to many points: a box's own face is pushed to it across up to
 #: :data:`WALL_GAP_CLOSE_REL` times the gap between two boxes (:func:`_facing_push`).
 BROAD_FACE_AREA = 0.5
+#: A push whose box reaches at most this far (metres) into boxes it already touches
+#: (a corner of a box a degree askew) is made by :func:`pipeline.snap.close_pair`.
+GRAZE_DEPTH = 0.001
 #: A box's top is raised to the underside of a box above it across a hidden gap up to
 #: this long (metres) when the box above rests on a neighbour that stands on the same
 #: level (a row of boxes, a bridge's two pillars: the fitted heights of two supports
@@ -1496,9 +1499,12 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
         cubs[x.box] = c.with_(center=c.center + u * x.length / 2, size=size)
         trial = final.with_(cuboids=tuple(cubs), stability=None)
         cs = find_contacts(trial)
-        if (any(cid in (p, q) for p, q, _ in cs.penetrations) and abs(u[2]) > 0.9
-                and not is_support_id(b)):
-            # the face carries (or rests on) a second box: level the boxes that touch
+        mine = [(p, q, d) for p, q, d in cs.penetrations if cid in (p, q)]
+        grazing = all(d <= GRAZE_DEPTH and tuple(sorted((p, q))) in touching
+                      for p, q, d in mine)
+        if mine and (abs(u[2]) > 0.9 or grazing) and not is_support_id(b):
+            # the face carries (or rests on) a second box: level the boxes that touch;
+            # a box a degree or two askew grazes a neighbour it touches as it moves
             trial = close_pair(final, final.index[b if cid == a else a], x.box, u,
                                x.length, x.length)
             if trial is None:

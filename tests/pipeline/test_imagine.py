@@ -1049,3 +1049,37 @@ def test_a_box_is_pushed_to_a_broad_seen_face_across_a_wall_sized_gap():
     # within the ordinary gap the small panel is reached too
     final, views = _slab_before_a_panel(0.5, 0.5, 0.015)
     assert close_hidden_gaps(final, views)[1] == ["panel|slab"]
+
+
+def test_a_box_a_degree_askew_that_grazes_its_neighbour_as_it_is_pushed_still_closes_the_gap():
+    # sofa-1003 of Table 1: a cushion 1.8 degrees off its arm, touching it at a rear
+    # corner, ended 1.1 cm short of the back.  Pushing its rear face back moves that
+    # corner 0.3 mm into the arm; the boxes that touch are moved together instead
+    # (pipeline.snap.close_pair), every contact kept
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.imagine import GRAZE_DEPTH, close_hidden_gaps
+    from pipeline.search import finalize
+
+    t = np.radians(-1.5)
+    ex, ey = np.array([np.cos(t), np.sin(t)]), np.array([-np.sin(t), np.cos(t)])
+    right = 0.2 * ex + 0.25 * ey  # the rear right corner, from the centre
+    rear = -0.2 * ex + 0.25 * ey  # the rear left corner (the nearest to the back)
+    cx, cy = 0.5 - right[0], -0.012 - rear[1]
+    panel = _observed(box("panel", (0, 0.1, 0.425), (2.0, 0.2, 0.85), object="p"))
+    arm = _observed(box("arm", (0.6, -0.3, 0.3), (0.2, 0.6, 0.6), object="a"))
+    # seen only as its top, 1 cm thick (its contact tolerance 0.2 mm)
+    slab = _observed(box("slab", (cx, cy, 0.005), (0.4, 0.5, 0.01), yaw=t, object="s"))
+    final = finalize(Arrangement((panel, arm, slab), (ground(),)), [])
+    before = find_contacts(final).lookup()
+    assert ("arm", "slab") in before and ("panel", "slab") not in before
+    assert 0.0002 < 0.012 * np.sin(-t) < GRAZE_DEPTH  # how far the corner would reach
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.3, -2.5, 1.6), (0.0, 0.0, 0.3))
+    blind = [DepthView(np.zeros((intr.height, intr.width)), intr, T)]
+    out, closed = close_hidden_gaps(final, blind)
+    after = find_contacts(out)
+    assert closed == ["panel|slab"] and not after.penetrations
+    assert set(after.lookup()) == set(before) | {("panel", "slab")}
+    for a, b in zip(final.cuboids, out.cuboids, strict=True):  # small moves only
+        assert np.abs(a.center - b.center).max() <= 0.012 + 1e-9
