@@ -522,6 +522,22 @@ FACE_ON_PART_MAX_DEG = 45.0
 FACE_ON_PART_MIN_FACE = 0.2
 
 
+#: :func:`deepen_thin_boxes` finds how deep a box blocked within a step goes to this
+#: resolution (metres).
+DEEPEN_RESOLUTION = 0.002
+
+
+def _deepened(arr: Arrangement, k: int, axis: int, u: np.ndarray, length: float
+              ) -> Arrangement:
+    """``arr`` with box ``k``'s face on ``axis`` towards ``u`` pushed out by ``length``."""
+    c = arr.cuboids[k]
+    size = c.size.copy()
+    size[axis] += length
+    cubs = list(arr.cuboids)
+    cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
+    return arr.with_(cuboids=tuple(cubs))
+
+
 def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 0.0,
                       steps: int = 4) -> tuple[Arrangement, list[str]]:
     """Give depth to boxes the sensor saw only face-on.
@@ -578,20 +594,36 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break
-            best = None
+            def deeper(length: float, base=arr, k=k, cid=c.id, axis=axis, u=u
+                       ) -> Arrangement | None:
+                return _settle_resting(_deepened(base, k, axis, u, length), cid)
+
+            best, done = None, 0.0
             for j in range(1, steps + 1):
                 length = full * j / steps
                 x = Extension(k, axis, side, length)
                 if visible_free_fraction(slab_samples(arr, x), views, margin) > FREE_FRACTION_MAX:
                     break
-                size = c.size.copy()
-                size[axis] += length
-                cubs = list(arr.cuboids)
-                cubs[k] = c.with_(center=c.center + u * length / 2, size=size)
-                trial = _settle_resting(arr.with_(cuboids=tuple(cubs)), c.id)
+                trial = deeper(length)
                 if trial is None:
+                    # blocked within this step by a broad face (a back cushion a few
+                    # degrees askew to the sofa's back): as deep as it goes, to 2 mm (a
+                    # wall, the floor or a small box in the way say nothing of the depth)
+                    pens = find_contacts(_deepened(arr, k, axis, u, length)).penetrations
+                    into = [q if p == c.id else p for p, q, _ in pens if c.id in (p, q)]
+                    if any(is_support_id(q) or not _broad_face(arr.cuboid(q), -u)
+                           for q in into):
+                        break
+                    lo, hi = done, length
+                    while hi - lo > DEEPEN_RESOLUTION:
+                        mid = 0.5 * (lo + hi)
+                        trial = deeper(mid)
+                        if trial is None:
+                            hi = mid
+                        else:
+                            lo, best = mid, trial
                     break
-                best = trial
+                best, done = trial, length
             if best is not None:
                 arr = best
                 deepened.append(c.id)

@@ -1083,3 +1083,45 @@ def test_a_box_a_degree_askew_that_grazes_its_neighbour_as_it_is_pushed_still_cl
     assert set(after.lookup()) == set(before) | {("panel", "slab")}
     for a, b in zip(final.cuboids, out.cuboids, strict=True):  # small moves only
         assert np.abs(a.center - b.center).max() <= 0.012 + 1e-9
+
+
+def _cushion_before(back_width: float, back_height: float):
+    """A back cushion seen face-on (5.6 cm deep as fitted, truly 14.1 cm), 2 degrees
+    askew to a board behind it (``back_width`` x ``back_height``) that it truly
+    touches at a corner; both seen, with the depth image of the true scene."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+
+    t = np.radians(2.0)
+    back = _observed(box("back", (0, 0.85, back_height / 2), (back_width, 1.1, back_height),
+                         object="b"))  # deep enough not to be deepened itself
+    reach = 0.5 * (0.45 * np.sin(t) + 0.141 * np.cos(t))  # centre to the rear corner, in y
+    true = box("cushion", (0, 0.3 - reach, 0.2), (0.45, 0.141, 0.4), yaw=t)
+    front = true.center - true.rotation[:, 1] * (0.141 - 0.056) / 2
+    seen = _observed(box("cushion", front, (0.45, 0.056, 0.4), yaw=t, object="c"))
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.5, 1.2), (0.0, 0.0, 0.3))
+    views = [DepthView(_depth_of_boxes([back, true], T, intr), intr, T)]
+    return Arrangement((back, seen), (ground(),)), views
+
+
+def test_a_slab_blocked_by_a_broad_face_within_a_step_is_deepened_up_to_it():
+    # sofa-1002 of Table 1: a back cushion seen face-on, 2 degrees askew to the sofa's
+    # back, went undeepened: the first quarter of its depth reached 2 cm into the back
+    # at a corner.  It goes as deep as it can, onto the back.  The same block by a
+    # narrower face (a 20 cm rail as wide as the back) leaves it as it was
+    from pipeline.imagine import BROAD_FACE_AREA, deepen_thin_boxes
+
+    arr, views = _cushion_before(2.0, 0.85)
+    out, ids = deepen_thin_boxes(arr, views)
+    assert ids == ["cushion"] and not find_contacts(out).penetrations
+    assert ("back", "cushion") in find_contacts(out).lookup()
+    c = out.cuboid("cushion")
+    assert 0.12 < c.size[1] < 0.141 + 0.004  # to within the contact tolerance (2 %)
+    # its seen front face stays where it was seen
+    front = lambda b: float(b.center @ b.rotation[:, 1] - b.size[1] / 2)  # noqa: E731
+    assert front(c) == pytest.approx(front(arr.cuboid("cushion")), abs=1e-9)
+    arr, views = _cushion_before(2.0, 0.2)
+    assert 2.0 * 0.2 < BROAD_FACE_AREA
+    out, ids = deepen_thin_boxes(arr, views)
+    assert ids == [] and out.cuboid("cushion") is arr.cuboid("cushion")
