@@ -1557,6 +1557,11 @@ def close_hidden_gaps(final: Arrangement, views: list[DepthView], margin: float 
     return final, closed
 
 
+#: :func:`relax_fixed` stops refining a group after a step that leaves more than this
+#: fraction of its energy (:func:`pipeline.refine.refine` ``stall``).
+REFINE_STALL = 0.97
+
+
 def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = None,
                 tilt_deg: float | None = None, deadline: float = float("inf"),
                 max_steps: int = 4, max_group: int = 16, views: list[DepthView] | None = None,
@@ -1630,7 +1635,7 @@ def relax_fixed(final: Arrangement, mu: float = 0.7, threshold: float | None = N
             try:
                 refined = refine(sub, mu=mu, max_steps=max_steps, tilt_deg=tilt,
                                  deadline=deadline, contacts=sub_cs,
-                                 solve_cache=cache).arrangement
+                                 solve_cache=cache, stall=REFINE_STALL).arrangement
             except InputError:
                 refined = None
             if refined is not None and stands(refined):
