@@ -36,6 +36,9 @@ MAX_EXTENSION_REL = 12.0
 SIDEWAYS_EXTENSION_REL = 1.5
 #: A face looks at a support when its outward normal is within 60 degrees of facing it.
 FACING_COS = 0.5
+#: A contact is a resting one (box on box) when its normal is within about 25 degrees of
+#: vertical: only then is the lower box offered to grow under an overhanging upper box.
+RESTING_COS = 0.9
 #: Reject an extension when more than this fraction of its samples were seen through.
 FREE_FRACTION_MAX = 0.1
 
@@ -131,9 +134,44 @@ def _caps(R: np.ndarray, S: np.ndarray, axis: np.ndarray, max_ext: float) -> np.
                     max_ext)
 
 
-def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False) -> list[Edge]:
+def _overhangs(C, R, S, corners, i, j, axis, tol, max_ext) -> dict[int, list[Extension]]:
+    """Per touching pair ``p`` (box ``i[p]`` against ``j[p]``, contact normal ``axis[p]``
+    from i towards j) resting one on the other: the lower box's side faces pushed out
+    under the upper box's footprint where it hangs over them (a desk top whose back edge
+    was not seen, a box on it hanging over the seen edge): the length is how far the
+    upper box's farthest corner lies past that face's plane."""
+    out: dict[int, list[Extension]] = {}
+    rest = np.abs(axis[:, 2]) >= RESTING_COS
+    if not rest.any():
+        return out
+    up = axis[:, 2] > 0  # j above i
+    for p in np.nonzero(rest)[0].tolist():
+        lo, hi = (int(i[p]), int(j[p])) if up[p] else (int(j[p]), int(i[p]))
+        axes = R[lo].T  # rows: the lower box's axes
+        proj = corners[hi] @ axes.T  # (8, 3)
+        c = axes @ C[lo]
+        h = S[lo] / 2
+        beyond = np.stack([(c - h) - proj.min(axis=0), proj.max(axis=0) - (c + h)], axis=1)
+        for ax in range(3):
+            if abs(R[lo, 2, ax]) >= 0.5:  # only side faces
+                continue
+            cap = min(max_ext, SIDEWAYS_EXTENSION_REL * float(S[lo].max()))
+            for side in (0, 1):
+                length = float(beyond[ax, side])
+                if tol[p] < length <= cap:
+                    out.setdefault(p, []).append(Extension(lo, ax, side, length))
+    return out
+
+
+def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
+               overhang: bool = False) -> list[Edge]:
     """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs
-    (``same_object``: only the pairs of parts of one object, each edge as without)."""
+    (``same_object``: only the pairs of parts of one object, each edge as without).
+
+    With ``overhang``, a pair of different objects already resting one on the other
+    (contact normal near vertical) whose upper box hangs over a side face of the lower
+    one is also offered that face pushed out under it (:func:`_overhangs`), as ``touch``
+    and ``fixed``: the lower box's far part may be hidden by the box on it."""
     K = len(arr.cuboids)
     if K < 2:
         return []
@@ -149,7 +187,7 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False) -> l
         return []
     tol = pair_tolerance(S[i], S[j])
     corners = box_corners(C, R, S)
-    sep, _, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
+    sep, normal, _ = sat_separation(C[i], R[i], H[i], C[j], R[j], H[j], tol)
     touching = np.abs(sep) <= tol
     apart = sep > tol
     gi = _face_gaps(C[i], R[i], H[i], corners[j])  # i's faces towards j
@@ -181,12 +219,23 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False) -> l
         for n, (p, _, ax, side, length) in enumerate(exts):
             if good[n]:
                 by_pair.setdefault(p, []).append(Extension(int(src[n]), ax, side, length))
+    over: dict[int, list[Extension]] = {}
+    if overhang and touching.any():
+        objects = [c.object for c in arr.cuboids]
+        t = np.array([p for p in np.nonzero(touching)[0].tolist()
+                      if objects[i[p]] is None or objects[i[p]] != objects[j[p]]], int)
+        if len(t):
+            found = _overhangs(C, R, S, corners, i[t], j[t], normal[t], tol[t], max_ext)
+            over = {int(t[q]): v for q, v in found.items()}
     for p in range(len(i)):
         a, b = int(i[p]), int(j[p])
         same = (arr.cuboids[a].object is not None
                 and arr.cuboids[a].object == arr.cuboids[b].object)
         if touching[p]:
             opts = (Option("touch"), Option("fixed"))
+            for e in over.get(p, ()):
+                v = e.volume(S)
+                opts += (Option("touch", (e,), v), Option("fixed", (e,), v))
         elif p in by_pair:
             opts = [Option("none")]
             for e in by_pair[p]:
@@ -237,7 +286,8 @@ def candidate_edges(arr: Arrangement, max_ext: float | None = None) -> list[Edge
     """All candidate edges of ``arr`` (pairs and supports)."""
     if max_ext is None:
         max_ext = MAX_EXTENSION_REL * arr.scale_length()
-    edges, _ = prune_penetrating(arr, pair_edges(arr, max_ext) + support_edges(arr, max_ext))
+    edges, _ = prune_penetrating(arr, pair_edges(arr, max_ext, overhang=True)
+                                 + support_edges(arr, max_ext))
     return edges
 
 

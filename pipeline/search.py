@@ -354,7 +354,10 @@ class _Group:
         Pairs that already touch start fused; then support edges, then pair edges (each
         group cheapest first) take their smallest ``fixed`` extension that does not drive
         a box into another given the extensions already taken; an edge none of whose
-        fixed options fit stays apart.
+        fixed options fit stays apart.  Touching pairs that may also grow the lower box
+        under an overhang (:func:`pipeline.extend.pair_edges` ``overhang``) come last:
+        they only add support to a box already resting, and must not take space that a
+        pair still apart needs to touch at all.
         """
         out = []
         for opts in self.options:
@@ -364,6 +367,7 @@ class _Group:
         order = sorted(range(len(self.edges)),
                        key=lambda k: (not isinstance(self.edges[k].b, str),
                                       not self.edges[k].same_object,
+                                      self.edges[k].touching,
                                       min(o.volume for o in self.options[k])))
         for k in order:
             opts = self.options[k]

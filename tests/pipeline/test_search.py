@@ -464,3 +464,21 @@ def test_a_part_whose_top_is_not_its_twins_is_left_hanging():
     assert res.stable
     assert ("far", "ground") not in _types(res.arrangement)
     np.testing.assert_allclose(res.arrangement.cuboid("far").size, [0.18, 0.6, 0.15], atol=1e-9)
+
+
+def test_a_slab_hidden_under_an_overhanging_box_is_grown_under_it():
+    # room-1000 of Table 1: a box on a desk top hangs 19 cm over the top's seen back
+    # edge (the top's far part was hidden).  The top grows under the box (touch) rather
+    # than the box being glued to it or the top stretched all the way to the wall.
+    wall = Support("wall:0", (0, 0, 0), (1, 0, 0))
+    top = box("top", (0.8, 0, 0.01), (1.0, 0.6, 0.02))  # x from 0.3 to 1.3, on the floor
+    crate = box("crate", (0.23, 0, 0.17), (0.26, 0.3, 0.3))  # x from 0.1: overhangs 0.2
+    arr = Arrangement((top, crate), (ground(), wall))
+    assert not check_stability(arr).stable
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    assert _types(res.arrangement) == {("crate", "top"): "touch", ("ground", "top"): "touch"}
+    out = res.arrangement.cuboid("top")
+    assert out.size[0] == pytest.approx(1.2)  # grown to the crate's far side, not the wall
+    assert out.center[0] == pytest.approx(0.7)
+    assert res.added_volume == pytest.approx(0.2 * 0.6 * 0.02)
