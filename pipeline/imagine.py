@@ -46,7 +46,7 @@ from .model import Arrangement, Contact, Cuboid, ObservedBox, is_support_id
 from .refine import refine
 from .search import search
 from .snap import close_gaps, close_pair
-from .symmetry import hallucinate, hidden_connectors
+from .symmetry import complete_by_mirror, hallucinate, hidden_connectors
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
 ISOLATE_ROUNDS = 3
@@ -1999,7 +1999,9 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     arr, connectors = hidden_connectors(arr, views, margin)
     arr, joined_parts = join_parts(arr, views=views, margin=margin)
     hallucinated = []
+    mirrored: list[str] = []
     if symmetry:
+        arr, mirrored = complete_by_mirror(arr, views, margin)
         arr, hallucinated = hallucinate(arr, views, margin)
     timings["symmetry"] = time.perf_counter() - t
 
@@ -2107,6 +2109,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "hallucinated": connectors + hallucinated + hidden,
         "connectors": connectors,
         "hidden_supports": hidden,
+        "mirrored": mirrored,
         "candidate_edges": len(edges),
         "candidate_options": n_candidates,
         "rejected_by_visibility": rejected_visibility,

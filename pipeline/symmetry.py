@@ -15,6 +15,11 @@ offset between the two tops.  The new part
 is kept only if it does not interpenetrate anything and, when a depth image exists,
 the sensor did not see through its volume; it carries ``extra["hallucinated"]`` and
 no observed box, and takes part in the search like any other cuboid.
+
+A part seen only in part is completed the same way (:func:`complete_by_mirror`): where
+the mirror image of a better-seen part of its object overlaps it (a desk's far side
+panel seen as a strip at its front edge), it grows to cover that image, up to the top's
+underside, where nothing is in the way and no view saw the space empty.
 """
 
 from __future__ import annotations
@@ -53,18 +58,21 @@ def _box_samples(c: Cuboid, n: int = 5) -> np.ndarray:
     return c.center + g @ c.rotation.T
 
 
-def _free(arr: Arrangement, cand: Cuboid) -> bool:
-    others = [c for c in arr.cuboids]
-    if not others:
-        return True
-    n = len(others)
-    C = np.stack([c.center for c in others])
-    R = np.stack([c.rotation for c in others])
-    S = np.stack([c.size for c in others])
+def _separations(arr: Arrangement, cand: Cuboid) -> tuple[np.ndarray, np.ndarray]:
+    """(separation, contact tolerance) of ``cand`` from each cuboid of ``arr``."""
+    n = len(arr.cuboids)
+    C, R, S = arr.centers, arr.rotations, arr.sizes
     tol = pair_tolerance(np.broadcast_to(cand.size, (n, 3)), S)
     sep, _, _ = sat_separation(np.broadcast_to(cand.center, (n, 3)),
                                np.broadcast_to(cand.rotation, (n, 3, 3)),
                                np.broadcast_to(cand.size / 2, (n, 3)), C, R, S / 2, tol)
+    return sep, tol
+
+
+def _free(arr: Arrangement, cand: Cuboid) -> bool:
+    if not arr.cuboids:
+        return True
+    sep, tol = _separations(arr, cand)
     return bool(np.all(sep >= -tol))
 
 
@@ -310,6 +318,87 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
     if not added:
         return arr, []
     return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]
+
+
+#: :func:`complete_by_mirror`: a part is completed by its twin's mirror image when their
+#: axes agree within this many degrees ...
+MIRROR_AXES_DEG = 5.0
+#: ... and the part grows by at least this much (metres) somewhere.
+MIRROR_MIN_GROWTH = 0.02
+
+
+def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float = 0.0
+                       ) -> tuple[Arrangement, list[str]]:
+    """Grow a part seen in part to the mirror image of its twin.
+
+    The two sides of a desk, the two brackets of a board: an object's part under one
+    end of its top whose mirror image across the top's centre (:func:`_mirror_support`)
+    of another of its parts overlaps it, with axes parallel (within
+    :data:`MIRROR_AXES_DEG`), is the same part seen from another side: the one seen with
+    fewer points grows to the bounding box of itself and that image, where the image
+    reaches past it by at least :data:`MIRROR_MIN_GROWTH` (a desk's far side, seen
+    as a 13 cm strip at its front edge, becomes as deep as its near side), never above
+    the top's underside.  The growth is kept where it enters no other box (overlaps the
+    part already had may stay) and no view saw its space empty.  Returns the
+    arrangement and the ids grown.
+    """
+    by_object: dict[str, list[int]] = {}
+    for k, c in enumerate(arr.cuboids):
+        if c.object is not None and not c.extra.get("hallucinated"):
+            by_object.setdefault(c.object, []).append(k)
+    cubs = list(arr.cuboids)
+    grown: list[str] = []
+    cos = np.cos(np.radians(MIRROR_AXES_DEG))
+    for obj, members in sorted(by_object.items()):
+        if len(members) < 3:
+            continue
+        top = _top_of([cubs[k] for k in members])
+        top_bottom = float(top.center[2] - np.abs(top.rotation[2]) @ top.size / 2)
+        for k in members:
+            part = cubs[k]
+            if part is top:
+                continue
+            for j in members:
+                twin = cubs[j]
+                if j == k or twin is top or (twin.extra.get("points", 0)
+                                             <= part.extra.get("points", 0)):
+                    continue
+                image = _mirror_support(top, twin, obj, 0)
+                if image is None or np.min(np.max(np.abs(part.rotation.T @ image.rotation),
+                                                  axis=0)) < cos:
+                    continue
+                # both boxes in the part's frame
+                own = part.rotation.T @ part.center
+                corners = image.corners() @ part.rotation
+                lo = np.minimum(own - part.size / 2, corners.min(axis=0))
+                hi = np.maximum(own + part.size / 2, corners.max(axis=0))
+                # up to the underside of the top, not into it (a strip whose noisy top
+                # reaches into the top would carry that overlap along)
+                up = int(np.argmax(np.abs(part.rotation[2])))
+                if part.rotation[2, up] > 0:
+                    hi[up] = min(hi[up], top_bottom)
+                else:
+                    lo[up] = max(lo[up], -top_bottom)
+                overlap = np.minimum(own + part.size / 2, corners.max(axis=0)) - \
+                    np.maximum(own - part.size / 2, corners.min(axis=0))
+                growth = (hi - lo) - part.size
+                if np.any(overlap <= 0) or growth.max() < MIRROR_MIN_GROWTH:
+                    continue
+                new = part.with_(center=part.rotation @ ((lo + hi) / 2), size=hi - lo)
+                rest = arr.with_(cuboids=tuple(c for n, c in enumerate(cubs) if n != k))
+                before, tol = _separations(rest, part)
+                after, _ = _separations(rest, new)
+                if np.any((after < -tol) & (after < before - 1e-9)):
+                    continue  # the growth enters another box (overlaps it had may stay)
+                if views and visible_free_fraction(_box_samples(new), views,
+                                                   margin) > FREE_FRACTION_MAX:
+                    continue
+                cubs[k] = new
+                grown.append(part.id)
+                break
+    if not grown:
+        return arr, []
+    return arr.with_(cuboids=tuple(cubs)), grown
 
 
 def _top_of(cubs: list[Cuboid]) -> Cuboid:

@@ -482,3 +482,54 @@ def test_a_slab_hidden_under_an_overhanging_box_is_grown_under_it():
     assert out.size[0] == pytest.approx(1.2)  # grown to the crate's far side, not the wall
     assert out.center[0] == pytest.approx(0.7)
     assert res.added_volume == pytest.approx(0.2 * 0.6 * 0.02)
+
+
+def _desk(far_strip: bool = True, blocker: bool = False):
+    """A desk (one object): a 1.3 x 0.7 top on two 0.72 m side panels at y = -/+0.6,
+    the near one seen whole (1200 points), the far one seen only as a 12 cm strip at the
+    front top (56 points); ``blocker``: a crate stands where the far panel's hidden
+    part would be."""
+    def part(cid, center, size, points):
+        c = box(cid, center, size, object="desk")
+        return c.with_(extra={"points": points})
+
+    top = part("top", (0, 0, 0.735), (0.7, 1.3, 0.03), 4000)
+    near = part("near", (0, -0.6, 0.36), (0.7, 0.02, 0.72), 1200)
+    far = part("far", (0.29, 0.6, 0.58), (0.12, 0.02, 0.28), 56) if far_strip else \
+        part("far", (0, 0.6, 0.36), (0.7, 0.02, 0.72), 900)
+    cubs = [top, near, far]
+    if blocker:
+        cubs.append(box("crate", (-0.2, 0.6, 0.2), (0.25, 0.3, 0.4), object="crate"))
+    return Arrangement(tuple(cubs), (ground(),))
+
+
+def test_a_part_seen_in_part_grows_to_its_twins_mirror_image():
+    # room-1000 of Table 1: a desk's far side panel, seen as a 13 cm strip at its front
+    # edge, is as deep and tall as the near one mirrored across the top's centre, up to
+    # the top's underside; the near one, the top and a panel seen whole stay
+    from pipeline.symmetry import complete_by_mirror
+
+    arr = _desk()
+    out, grown = complete_by_mirror(arr, [])
+    assert grown == ["far"]
+    far = out.cuboid("far")
+    lo, hi = far.center - far.size / 2, far.center + far.size / 2
+    np.testing.assert_allclose(lo, [-0.35, 0.59, 0.0], atol=1e-9)
+    np.testing.assert_allclose(hi, [0.35, 0.61, 0.72], atol=1e-9)
+    assert out.cuboid("near") is arr.cuboid("near") and out.cuboid("top") is arr.cuboid("top")
+    assert far.observed == arr.cuboid("far").observed
+    whole = _desk(far_strip=False)
+    assert complete_by_mirror(whole, []) == (whole, [])
+    # a crate where the hidden part would be: it does not grow into it
+    blocked = _desk(blocker=True)
+    assert complete_by_mirror(blocked, []) == (blocked, [])
+    # a view that saw the floor through that space: it does not grow either (a view
+    # with no reading there says nothing, and it grows)
+    from tests.pipeline.test_imagine import _depth_of_boxes
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((2.5, 0.3, 1.2), (0.0, 0.4, 0.3))
+    through = DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)
+    assert complete_by_mirror(arr, [through])[1] == []
+    blind = DepthView(np.zeros((intr.height, intr.width)), intr, T)
+    assert complete_by_mirror(arr, [blind])[1] == ["far"]
