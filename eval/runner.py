@@ -58,11 +58,16 @@ class Task:
         returning a JSON-serialisable dict (numpy scalars and arrays are converted).
     kwargs : mapping
         Picklable keyword arguments.
+    cost : float
+        A rough relative running time.  Parallel runs start the costliest tasks first
+        (longest processing time first: a long task started last keeps one worker busy
+        while the others idle); results, records and their order do not depend on it.
     """
 
     id: str
     fn: Callable[..., Mapping[str, Any]]
     kwargs: Mapping[str, Any] = field(default_factory=dict)
+    cost: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -269,8 +274,9 @@ def run_tasks(tasks: Iterable[Task], out: str | Path, *, seed: int = 0, workers:
                     _collect(executor.submit(execute, t.fn, dict(t.kwargs), t.id, seed),
                              t, out, prints, records, bar)
             else:
+                order = sorted(pending, key=lambda t: -t.cost)  # stable: ties in task order
                 futures = {executor.submit(execute, t.fn, dict(t.kwargs), t.id, seed): t
-                           for t in pending}
+                           for t in order}
                 for fut in cf.as_completed(futures):
                     _collect(fut, futures[fut], out, prints, records, bar)
     finally:

@@ -31,6 +31,16 @@ def counted(rng: np.random.Generator, n: int, log: str, interrupt: bool = False)
     return {"n": n, "u": float(rng.random())}
 
 
+def timed(rng: np.random.Generator, n: int, log: str) -> dict:
+    """Log this task's start (a monotonic clock shared by the workers of one machine)."""
+    import time
+
+    with open(log, "a", encoding="utf-8") as fh:
+        fh.write(f"{n} {time.monotonic()}\n")
+    time.sleep(0.3)
+    return {"n": n}
+
+
 def not_a_dict(rng: np.random.Generator) -> list:
     return [1, 2]
 
@@ -137,3 +147,21 @@ def test_results_must_be_json_dicts(tmp_path):
     assert s.n_ok == 1 and s.results["c"]["n"] == 2
     # numpy values were converted to plain JSON
     assert isinstance(s.results["c"]["first"], list) and isinstance(s.results["c"]["max"], float)
+
+
+def test_parallel_runs_start_the_costliest_tasks_first(tmp_path):
+    # longest processing time first: of six tasks on two workers the two marked costliest
+    # start before the rest; records (and their order) are as without costs
+    log = tmp_path / "starts.log"
+    costs = [1.0, 1.0, 1.0, 5.0, 1.0, 3.0]
+    tasks = [Task(f"t{i}", timed, {"n": i, "log": str(log)}, cost=c)
+             for i, c in enumerate(costs)]
+    summary = run_tasks(tasks, tmp_path / "out", workers=2, progress=False)
+    assert [r.id for r in summary.records] == [t.id for t in tasks] and summary.n_ok == 6
+    starts = dict(line.split() for line in log.read_text().splitlines())
+    first_two = sorted(starts, key=lambda k: float(starts[k]))[:2]
+    assert sorted(first_two) == ["3", "5"]
+    # the serial path keeps the task order (nothing to balance)
+    log.unlink()
+    run_tasks(tasks, tmp_path / "serial", progress=False)
+    assert [line.split()[0] for line in log.read_text().splitlines()] == [str(i) for i in range(6)]
