@@ -325,6 +325,8 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
 MIRROR_AXES_DEG = 5.0
 #: ... and the part grows by at least this much (metres) somewhere.
 MIRROR_MIN_GROWTH = 0.02
+#: ... and the image lies at most this far (metres) off the part along one axis.
+MIRROR_SLACK = 0.02
 
 
 def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float = 0.0
@@ -333,7 +335,7 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
 
     The two sides of a desk, the two brackets of a board: an object's part under one
     end of its top whose mirror image across the top's centre (:func:`_mirror_support`)
-    of another of its parts overlaps it, with axes parallel (within
+    of another of its parts, as the sensor saw that part (its observed box), overlaps it, with axes parallel (within
     :data:`MIRROR_AXES_DEG`), is the same part seen from another side: the one seen with
     fewer points grows to the bounding box of itself and that image, where the image
     reaches past it by at least :data:`MIRROR_MIN_GROWTH` (a desk's far side, seen
@@ -363,7 +365,11 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
                 if j == k or twin is top or (twin.extra.get("points", 0)
                                              <= part.extra.get("points", 0)):
                     continue
-                image = _mirror_support(top, twin, obj, 0)
+                # the twin as the sensor saw it (a deepening's guess is no evidence)
+                seen = twin if twin.observed is None else twin.with_(
+                    center=np.asarray(twin.observed.center, float),
+                    size=np.asarray(twin.observed.size, float))
+                image = _mirror_support(top, seen, obj, 0)
                 if image is None or np.min(np.max(np.abs(part.rotation.T @ image.rotation),
                                                   axis=0)) < cos:
                     continue
@@ -382,7 +388,10 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
                 overlap = np.minimum(own + part.size / 2, corners.max(axis=0)) - \
                     np.maximum(own - part.size / 2, corners.min(axis=0))
                 growth = (hi - lo) - part.size
-                if np.any(overlap <= 0) or growth.max() < MIRROR_MIN_GROWTH:
+                # the same part: overlapping along two axes, and along the third at most
+                # MIRROR_SLACK apart (a thin panel's mirror image lands a few mm off)
+                if (np.sum(overlap > 0) < 2 or np.any(overlap <= -MIRROR_SLACK)
+                        or growth.max() < MIRROR_MIN_GROWTH):
                     continue
                 new = part.with_(center=part.rotation @ ((lo + hi) / 2), size=hi - lo)
                 rest = arr.with_(cuboids=tuple(c for n, c in enumerate(cubs) if n != k))

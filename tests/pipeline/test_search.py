@@ -484,7 +484,8 @@ def test_a_slab_hidden_under_an_overhanging_box_is_grown_under_it():
     assert res.added_volume == pytest.approx(0.2 * 0.6 * 0.02)
 
 
-def _desk(far_strip: bool = True, blocker: bool = False):
+def _desk(far_strip: bool = True, blocker: bool = False, far_y: float = 0.6,
+          near_seen=None):
     """A desk (one object): a 1.3 x 0.7 top on two 0.72 m side panels at y = -/+0.6,
     the near one seen whole (1200 points), the far one seen only as a 12 cm strip at the
     front top (56 points); ``blocker``: a crate stands where the far panel's hidden
@@ -495,7 +496,9 @@ def _desk(far_strip: bool = True, blocker: bool = False):
 
     top = part("top", (0, 0, 0.735), (0.7, 1.3, 0.03), 4000)
     near = part("near", (0, -0.6, 0.36), (0.7, 0.02, 0.72), 1200)
-    far = part("far", (0.29, 0.6, 0.58), (0.12, 0.02, 0.28), 56) if far_strip else \
+    if near_seen is not None:  # the near panel as seen; its box a deepening's guess
+        near = near.with_(observed=ObservedBox(*near_seen))
+    far = part("far", (0.29, far_y, 0.58), (0.12, 0.02, 0.28), 56) if far_strip else \
         part("far", (0, 0.6, 0.36), (0.7, 0.02, 0.72), 900)
     cubs = [top, near, far]
     if blocker:
@@ -533,3 +536,13 @@ def test_a_part_seen_in_part_grows_to_its_twins_mirror_image():
     assert complete_by_mirror(arr, [through])[1] == []
     blind = DepthView(np.zeros((intr.height, intr.width)), intr, T)
     assert complete_by_mirror(arr, [blind])[1] == ["far"]
+    # the image is of the twin as seen: a near panel seen only as its front 10 cm (its
+    # depth a guess) lends the strip its height, not its depth
+    out, grown = complete_by_mirror(_desk(near_seen=((0.3, -0.6, 0.36), (0.1, 0.02, 0.72))), [])
+    far = out.cuboid("far")
+    assert grown == ["far"]
+    np.testing.assert_allclose(far.center - far.size / 2, [0.23, 0.59, 0.0], atol=1e-9)
+    np.testing.assert_allclose(far.center + far.size / 2, [0.35, 0.61, 0.72], atol=1e-9)
+    # a strip 1 cm behind the image of its twin is still that part; 3 cm behind, not
+    assert complete_by_mirror(_desk(far_y=0.63), [])[1] == ["far"]
+    assert complete_by_mirror(_desk(far_y=0.65), [])[1] == []
