@@ -1995,6 +1995,9 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
     if views:
         scale = arr.scale_length()
         margin = 0.05 * scale
+    from .rows import resolve_rows
+
+    arr, rows = resolve_rows(arr, views, margin)
     arr, deepened = deepen_thin_boxes(arr, views, margin)
     arr, connectors = hidden_connectors(arr, views, margin)
     arr, joined_parts = join_parts(arr, views=views, margin=margin)
@@ -2118,6 +2121,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
         "deepened": deepened,
+        "rows": rows,
         "joined_parts": joined_parts,
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},

@@ -1,0 +1,108 @@
+"""Rows of books on a board: noisy fits set one in front of the other go back side by side."""
+
+import numpy as np
+
+from pipeline.camera import Intrinsics, look_at
+from pipeline.contacts import find_contacts
+from pipeline.extend import DepthView
+from pipeline.model import Arrangement, ObservedBox, box, ground
+from pipeline.rows import _row_order, resolve_rows
+from tests.pipeline.test_imagine import _depth_of_boxes
+
+TOP = 0.51  # the board's top face
+H = 0.25  # the books' height
+
+
+def _book(name: str, x0: float, x1: float, y0: float, y1: float, h: float = H):
+    c = box(name, ((x0 + x1) / 2, (y0 + y1) / 2, TOP + h / 2), (x1 - x0, y1 - y0, h),
+            object=name)
+    return c.with_(observed=ObservedBox(c.center, c.size))
+
+
+def _zigzag(flat: bool = False) -> Arrangement:
+    """Three books 3-4 cm thick fitted 5 cm wide: each overlaps the next along the board
+    while the overlap repair set the middle one behind the other two."""
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    h = 0.02 if flat else H
+    books = (_book("a", -0.305, -0.255, -0.14, -0.10, h),
+             _book("b", -0.285, -0.235, -0.09, -0.05, h),
+             _book("c", -0.260, -0.205, -0.14, -0.11, h))
+    return Arrangement((board.with_(observed=ObservedBox(board.center, board.size)),)
+                       + books, (ground(),))
+
+
+def _x(c):
+    return (float(c.center[0] - c.size[0] / 2), float(c.center[0] + c.size[0] / 2))
+
+
+def _y(c):
+    return (float(c.center[1] - c.size[1] / 2), float(c.center[1] + c.size[1] / 2))
+
+
+def test_a_zigzag_row_goes_back_side_by_side():
+    arr = _zigzag()
+    out, changed = resolve_rows(arr)
+    assert changed == ["a", "b", "c"]
+    a, b, c = (out.cuboid(k) for k in "abc")
+    # each overlap split at its middle, the outer ends kept
+    np.testing.assert_allclose(_x(a), (-0.305, -0.27), atol=1e-12)
+    np.testing.assert_allclose(_x(b), (-0.27, -0.2475), atol=1e-12)
+    np.testing.assert_allclose(_x(c), (-0.2475, -0.205), atol=1e-12)
+    # front faces as seen, back faces at the row's farthest
+    for k, front in zip((a, b, c), (-0.14, -0.09, -0.14)):
+        np.testing.assert_allclose(_y(k), (front, -0.05), atol=1e-12)
+        # the box still holds what the sensor saw of it (the refinement's constraint)
+        o = k.observed
+        assert np.all(np.abs(o.center - k.center) + o.size / 2 <= k.size / 2 + 1e-12)
+    cs = find_contacts(out)
+    assert not cs.penetrations
+    touching = cs.lookup()
+    assert ("a", "b") in touching and ("b", "c") in touching
+    assert ("a", "c") not in touching  # neighbours only, not the book two places on
+
+
+def test_flat_boxes_are_no_row():
+    arr = _zigzag(flat=True)  # a keyboard and a monitor's foot lie flat, side by side
+    out, changed = resolve_rows(arr)
+    assert changed == [] and out is arr
+
+
+def test_row_order_ignores_depth_noise_along_the_ray():
+    intr = Intrinsics.kinect_v1()
+    eye = np.array([1.5, -3.0, 2.0])
+    T = look_at(eye, (0.0, 0.0, 0.6))
+    view = DepthView(np.zeros((intr.height, intr.width)), intr, T)
+    arr = _zigzag()
+    board, book = arr.cuboid("board"), arr.cuboid("b")
+    X = np.array([1.0, 0.0, 0.0])
+    key = _row_order(book, board, X, [view])
+    ray = (book.center - eye) / np.linalg.norm(book.center - eye)
+    for t in (-0.08, -0.03, 0.05):  # noise moves the fitted centre along the ray only
+        moved = book.with_(center=book.center + t * ray)
+        assert abs(_row_order(moved, board, X, [view]) - key) < 1e-6
+        # without the image the same noise would move it along the row by ~|t| cos
+        assert abs(_row_order(moved, board, X, []) - _row_order(book, board, X, [])) > 0.01
+    # along the row the image order is the true order
+    ahead = book.with_(center=book.center + 0.02 * X)
+    assert _row_order(ahead, board, X, [view]) > key
+
+
+def test_a_book_does_not_go_back_into_space_the_sensor_saw_empty():
+    intr = Intrinsics.kinect_v1()
+    # from the open end of the row: the space behind the last book (the frame twice: a
+    # scan of several views, whose boxes are ordered along the row as fitted)
+    T = look_at((1.0, -0.08, 0.75), (-0.25, -0.08, 0.63))
+    arr = _zigzag()
+    # the scene really is what was fitted: nothing behind the last book ...
+    empty = [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)] * 2
+    out, changed = resolve_rows(arr, empty)
+    assert changed == ["a", "b", "c"]  # (still split side by side)
+    np.testing.assert_allclose(_x(out.cuboid("c")), (-0.2475, -0.205), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.11), atol=1e-12)
+    # ... while a book as deep as the row hides that space, and the fit goes back
+    deep = [c if c.id != "c" else c.with_(center=np.array([c.center[0], -0.095, c.center[2]]),
+                                          size=np.array([c.size[0], 0.09, c.size[2]]))
+            for c in arr.cuboids]
+    hidden = [DepthView(_depth_of_boxes(deep, T, intr), intr, T)] * 2
+    out, _ = resolve_rows(arr, hidden)
+    np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.05), atol=1e-12)
