@@ -1280,6 +1280,72 @@ def anchor_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.
     return final, done
 
 
+def ground_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.7,
+                 threshold: float | None = None) -> tuple[Arrangement, list[str]]:
+    """Stand on the floor every part of a grounded object that hangs from its other
+    parts only by glue.
+
+    Glue between the parts of one object costs the search nothing, so a part whose
+    bottom the sensor never saw (a sofa's arm seen from behind, only its top) hangs
+    from the back it is fused to rather than being extended to the floor.  A part of
+    an object with a grounded part, not itself on the floor and fused to exactly one
+    other part, a grounded one (not a shelf's bottom board between its two sides, nor
+    a seat on its legs), whose drop to the floor is as for :func:`hidden_supports`
+    (more than :data:`HIDDEN_DROP_REL` times its seen height and
+    :data:`HIDDEN_MIN_DROP`), is extended down as the candidate extension put it (space
+    no view saw empty, nothing entered) and touches the floor; each change is kept when
+    the arrangement still stands.  Returns the arrangement and the ids of the parts
+    grounded.
+    """
+    from .search import finalize
+
+    grounded = {c.a for c in final.contacts if c.b == "ground"} | \
+        {c.b for c in final.contacts if c.a == "ground"}
+    objects = {final.cuboid(g).object for g in grounded
+               if g in final.index and final.cuboid(g).object is not None}
+    if not objects:
+        return final, []
+    reach = {}
+    for e in edges:
+        if e.b == "ground":
+            ext = [o for o in e.options if o.type == "touch" and len(o.extensions) == 1]
+            if ext:
+                reach[initial.cuboids[e.a].id] = ext[0].extensions[0]
+    done: list[str] = []
+    for c in list(final.cuboids):
+        if (c.object not in objects or c.id in grounded or c.id not in reach
+                or c.extra.get("hallucinated")):
+            continue
+        # hanging from one grounded part (an arm from the back), not spanning between
+        # several (a shelf's bottom board between its sides, a seat on its legs)
+        glued = {k.b if k.a == c.id else k.a for k in final.contacts
+                 if k.type == "fixed" and c.id in (k.a, k.b)}
+        if len(glued) != 1 or not glued <= grounded:
+            continue
+        # ... a drop the sensor could not have seen the part's bottom across: more than
+        # it saw of the part's height (an arm seen as its top), not a bottom board's
+        # few centimetres over the floor
+        drop = float(reach[c.id].length)
+        seen = c.observed.size if c.observed is not None else c.size
+        height = float(seen[int(np.argmax(np.abs(c.rotation[2])))])
+        if drop < max(HIDDEN_MIN_DROP, HIDDEN_DROP_REL * height):
+            continue
+        trial = _push_face(final, initial, reach[c.id])
+        cs = find_contacts(trial)
+        if (any(c.id in (a, b) for a, b, _ in cs.penetrations)
+                or tuple(sorted((c.id, "ground"))) not in cs.lookup()):
+            continue
+        fixed = [k for k in final.contacts if k.type == "fixed"]
+        try:
+            cand = finalize(trial, fixed, mu=mu, threshold=threshold)
+        except InputError:
+            continue
+        if cand.stability is not None and cand.stability.stable:
+            final = cand
+            done.append(c.id)
+    return final, done
+
+
 #: Gaps between two boxes up to this long (metres), in space no view saw empty, are
 #: closed by :func:`close_hidden_gaps` (about three standard deviations of Kinect depth
 #: noise at 2 m).
@@ -2063,6 +2129,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         final = finalize(final, [c for c in final.contacts if c.type == "fixed"], mu=mu,
                          threshold=threshold)
     final, anchored = anchor_parts(final, arr, edges, mu=mu, threshold=threshold)
+    final, grounded_parts = ground_parts(final, arr, edges, mu=mu, threshold=threshold)
     # (the boxes the search grew to the floor first get their hidden supports: their
     # gaps are those of the boxes the sensor saw)
     final, hidden = hidden_supports(final, mu=mu, threshold=threshold, views=views,
@@ -2126,6 +2193,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "set_aside": [c.id for c in aside],
         "relaxed_joints": {"tried": relax_tried, "relaxed": relaxed},
         "anchored_parts": anchored,
+        "grounded_parts": grounded_parts,
         "closed_gaps": gaps,
         "added_volume_m3": result.added_volume,
         "gap_closed_m": gap_closed,

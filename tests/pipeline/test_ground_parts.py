@@ -1,0 +1,55 @@
+"""Parts of a grounded object that hang from it by glue stand on the floor instead."""
+
+import numpy as np
+
+from pipeline.extend import candidate_edges
+from pipeline.imagine import ground_parts
+from pipeline.model import Arrangement, Contact, ObservedBox, box, ground
+from pipeline.search import finalize
+
+
+def _seen(c):
+    return c.with_(observed=ObservedBox(c.center, c.size))
+
+
+def _sofa(arm_top_seen: float):
+    """A sofa's back on the floor and an arm beside it seen as its top ``arm_top_seen``
+    metres thick (the camera behind the sofa), glued to the back."""
+    back = _seen(box("back", (0.0, 0.0, 0.45), (0.2, 2.0, 0.9), object="sofa"))
+    top = 0.6
+    arm = _seen(box("arm", (0.4, 0.9, top - arm_top_seen / 2), (0.6, 0.2, arm_top_seen),
+                    object="sofa"))
+    initial = Arrangement((back, arm), (ground(),))
+    final = finalize(initial, [Contact("arm", "back", "fixed")])
+    return initial, final
+
+
+def test_an_arm_seen_only_at_its_top_stands_on_the_floor():
+    initial, final = _sofa(0.02)
+    assert final.stability.stable  # glued, it stands as it is: the search would keep it
+    out, done = ground_parts(final, initial, candidate_edges(initial))
+    assert done == ["arm"]
+    arm = out.cuboid("arm")
+    np.testing.assert_allclose(arm.center[2] - arm.size[2] / 2, 0.0, atol=1e-9)
+    np.testing.assert_allclose(arm.center[2] + arm.size[2] / 2, 0.6, atol=1e-9)
+    keys = {(c.a, c.b, c.type) for c in out.contacts}
+    assert ("arm", "ground", "touch") in keys or ("ground", "arm", "touch") in keys
+    assert out.stability.stable
+
+
+def test_a_part_seen_over_most_of_its_drop_keeps_hanging():
+    # 0.3 m of the arm seen, 0.3 m hidden below it: not more than 1.5x what was seen
+    initial, final = _sofa(0.3)
+    out, done = ground_parts(final, initial, candidate_edges(initial))
+    assert done == [] and out is final
+
+
+def test_a_board_between_two_sides_is_not_grounded():
+    sides = [_seen(box(f"side{i}", (x, 0.0, 0.5), (0.02, 0.3, 1.0), object="shelf"))
+             for i, x in enumerate((-0.4, 0.4))]
+    board = _seen(box("board", (0.0, 0.0, 0.5), (0.78, 0.3, 0.02), object="shelf"))
+    initial = Arrangement((*sides, board), (ground(),))
+    final = finalize(initial, [Contact("board", "side0", "fixed"),
+                               Contact("board", "side1", "fixed")])
+    out, done = ground_parts(final, initial, candidate_edges(initial))
+    assert done == [] and out is final
