@@ -112,6 +112,48 @@ def _row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views: list) -> float:
     return float((uv[0] - uv[1]) @ along / max(float(np.linalg.norm(along)), 1e-9))
 
 
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+def _rows_by_support(arr: Arrangement, min_members: int = 2):
+    """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
+    support with at least ``min_members`` standing slabs on it: boxes resting on it
+    (bottoms within :data:`ROW_REST_GAP` of its top), yaws within :data:`ROW_AXES_DEG`
+    of its own, not parts of its object, at least :data:`ROW_MIN_HEIGHT_REL` times as
+    tall as wide along its long axis ``X`` (a book on its edge, not a keyboard or a
+    monitor's foot).  ``Y``: the support's short horizontal axis."""
+    from .imagine import _resting_on
+
+    cos_tol = np.cos(np.radians(ROW_AXES_DEG))
+    by_support: dict[str, list[int]] = {}
+    for k, c in enumerate(arr.cuboids):
+        if c.extra.get("hallucinated") or abs(c.rotation[2]).max() < cos_tol:
+            continue
+        s = _resting_on(arr, c, ROW_REST_GAP)
+        if s is None or (c.object is not None and c.object == s.object):
+            continue
+        if (abs(s.rotation[2]).max() < 1 - 1e-9
+                or np.min(np.abs(s.rotation.T @ c.rotation).max(axis=0)) < cos_tol):
+            continue
+        by_support.setdefault(s.id, []).append(k)
+    out = []
+    for sid, members in sorted(by_support.items()):
+        s = arr.cuboid(sid)
+        horiz = [a for a in range(3) if abs(s.rotation[2, a]) < 0.5]
+        X = s.rotation[:, max(horiz, key=lambda a: float(s.size[a]))]
+        Y = s.rotation[:, min(horiz, key=lambda a: float(s.size[a]))]
+        cubs = {}
+        for k in members:
+            c = _turned(arr.cuboids[k], s)
+            x0, x1 = _range(c, s.center, X)
+            z0, z1 = _range(c, s.center, _UP)
+            if z1 - z0 >= ROW_MIN_HEIGHT_REL * (x1 - x0):
+                cubs[k] = c
+        if len(cubs) >= min_members:
+            out.append((s, (X, Y), cubs))
+    return out
+
+
 def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.0
                  ) -> tuple[Arrangement, list[str]]:
     """Set the boxes of each row on a support side by side (module docstring).
@@ -129,39 +171,16 @@ def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.
 
     from .contacts import find_contacts
     from .extend import FREE_FRACTION_MAX, visible_free_fraction
-    from .imagine import _resting_on
     from .symmetry import _box_samples
 
     views = views or []
-    cos_tol = np.cos(np.radians(ROW_AXES_DEG))
-    by_support: dict[str, list[int]] = {}
-    for k, c in enumerate(arr.cuboids):
-        if c.extra.get("hallucinated") or abs(c.rotation[2]).max() < cos_tol:
-            continue
-        s = _resting_on(arr, c, ROW_REST_GAP)
-        if s is None or (c.object is not None and c.object == s.object):
-            continue
-        if (abs(s.rotation[2]).max() < 1 - 1e-9
-                or np.min(np.abs(s.rotation.T @ c.rotation).max(axis=0)) < cos_tol):
-            continue
-        by_support.setdefault(s.id, []).append(k)
     eye = np.asarray(views[0].T_world_cam, float)[:3, 3] if views else None
     changed: list[str] = []
-    for sid, members in sorted(by_support.items()):
-        if len(members) < 2:
-            continue
-        s = arr.cuboid(sid)
-        horiz = [a for a in range(3) if abs(s.rotation[2, a]) < 0.5]
-        X = s.rotation[:, max(horiz, key=lambda a: float(s.size[a]))]
-        Y = s.rotation[:, min(horiz, key=lambda a: float(s.size[a]))]
-        Z = np.array([0.0, 0.0, 1.0])
-        cubs = {k: _turned(arr.cuboids[k], s) for k in members}
+    for s, (X, Y), cubs in _rows_by_support(arr):
+        members = sorted(cubs)
         xr = {k: _range(c, s.center, X) for k, c in cubs.items()}
         yr = {k: _range(c, s.center, Y) for k, c in cubs.items()}
-        zr = {k: _range(c, s.center, Z) for k, c in cubs.items()}
-        # standing slabs only (a book on its edge, not a keyboard or a monitor's foot)
-        members = [k for k in members
-                   if zr[k][1] - zr[k][0] >= ROW_MIN_HEIGHT_REL * (xr[k][1] - xr[k][0])]
+        zr = {k: _range(c, s.center, _UP) for k, c in cubs.items()}
         links = np.zeros((len(members), len(members)), dtype=bool)
         for n, i in enumerate(members):
             for m in range(n + 1, len(members)):
