@@ -103,8 +103,11 @@ def _row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views: list) -> float:
     from .camera import invert, project, transform
 
     v = views[0]
+    # where the sensor put it (the overlap repair since moved it across the row, which
+    # is not along the ray)
+    at = c.observed.center if c.observed is not None else c.center
     cam = transform(invert(np.asarray(v.T_world_cam, float)),
-                    np.stack([c.center, s.center - 0.1 * X, s.center + 0.1 * X]))
+                    np.stack([at, s.center - 0.1 * X, s.center + 0.1 * X]))
     uv, z = project(cam, v.intrinsics)
     if np.any(z <= 0) or not np.all(np.isfinite(uv)):
         return float((c.center - s.center) @ X)
