@@ -1287,10 +1287,11 @@ def ground_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.
 
     Glue between the parts of one object costs the search nothing, so a part whose
     bottom the sensor never saw (a sofa's arm seen from behind, only its top) hangs
-    from the back it is fused to rather than being extended to the floor.  A part of
-    an object with a grounded part, not itself on the floor and fused to exactly one
-    other part, a grounded one (not a shelf's bottom board between its two sides, nor
-    a seat on its legs), whose drop to the floor is as for :func:`hidden_supports`
+    from the back it is fused to rather than being extended to the floor, and a table's
+    leg seen only at its top hangs from the table top while three others stand.  A part
+    of an object with a grounded part, not itself on the floor and fused to exactly one
+    other part (not a shelf's bottom board between its two sides, nor a seat on its
+    legs), whose drop to the floor is as for :func:`hidden_supports`
     (more than :data:`HIDDEN_DROP_REL` times its seen height and
     :data:`HIDDEN_MIN_DROP`), is extended down as the candidate extension put it (space
     no view saw empty, nothing entered) and touches the floor; each change is kept when
@@ -1316,11 +1317,12 @@ def ground_parts(final: Arrangement, initial: Arrangement, edges, mu: float = 0.
         if (c.object not in objects or c.id in grounded or c.id not in reach
                 or c.extra.get("hallucinated")):
             continue
-        # hanging from one grounded part (an arm from the back), not spanning between
-        # several (a shelf's bottom board between its sides, a seat on its legs)
+        # hanging from one part (an arm from the back, a leg from the top), not
+        # spanning between several (a shelf's bottom board between its sides, a seat
+        # on its legs)
         glued = {k.b if k.a == c.id else k.a for k in final.contacts
                  if k.type == "fixed" and c.id in (k.a, k.b)}
-        if len(glued) != 1 or not glued <= grounded:
+        if len(glued) != 1:
             continue
         # ... a drop the sensor could not have seen the part's bottom across: more than
         # it saw of the part's height (an arm seen as its top), not a bottom board's

@@ -287,8 +287,17 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
         quads = [(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]]
         if len(set(quads)) != len(quads) or any(0 in q for q in quads):
             continue
+        # a quadrant where some other part of the object stands below the top (a leg
+        # seen only at its foot, too short to pass for a leg) has its leg
+        held = set()
+        for c in cubs:
+            if c is top or any(c is leg for leg in legs) or c.center[2] >= top.center[2]:
+                continue
+            x, y = (top.rotation.T @ (c.center - top.center))[:2]
+            if abs(x) > top.size[0] / 8 and abs(y) > top.size[1] / 8:  # a corner, no rail
+                held.add((int(np.sign(x)), int(np.sign(y))))
         for missing in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-            if missing in quads:
+            if missing in quads or missing in held:
                 continue
             # the diagonal leg turned half a turn about the top's vertical axis (this
             # does not depend on the top's yaw, which noise and tilt make the least
@@ -340,7 +349,8 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
     fewer points grows to the bounding box of itself and that image, where the image
     reaches past it by at least :data:`MIRROR_MIN_GROWTH` (a desk's far side, seen
     as a 13 cm strip at its front edge, becomes as deep as its near side), never above
-    the top's underside.  The growth is kept where it enters no other box (overlaps the
+    the top's underside, and never wider across than the twin by more than twice
+    :data:`MIRROR_SLACK`.  The growth is kept where it enters no other box (overlaps the
     part already had may stay) and no view saw its space empty.  Returns the
     arrangement and the ids grown.
     """
@@ -392,6 +402,12 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
                 # MIRROR_SLACK apart (a thin panel's mirror image lands a few mm off)
                 if (np.sum(overlap > 0) < 2 or np.any(overlap <= -MIRROR_SLACK)
                         or growth.max() < MIRROR_MIN_GROWTH):
+                    continue
+                # ... and no bigger than its twin (with the slack) once grown: a leg's
+                # foot and the image of another leg 30 cm off are two legs, not one
+                twin_size = np.abs(part.rotation.T @ seen.rotation) @ seen.size
+                horiz = np.abs(part.rotation[2]) < 0.5
+                if np.any(((hi - lo) > twin_size + 2 * MIRROR_SLACK) & horiz):
                     continue
                 new = part.with_(center=part.rotation @ ((lo + hi) / 2), size=hi - lo)
                 rest = arr.with_(cuboids=tuple(c for n, c in enumerate(cubs) if n != k))

@@ -53,3 +53,22 @@ def test_a_board_between_two_sides_is_not_grounded():
                                Contact("board", "side1", "fixed")])
     out, done = ground_parts(final, initial, candidate_edges(initial))
     assert done == [] and out is final
+
+
+def test_a_leg_seen_at_its_top_stands_while_three_others_hold_the_table():
+    top = _seen(box("top", (0.0, 0.0, 0.72), (1.0, 0.6, 0.04), object="table"))
+    legs = [_seen(box(f"leg{i}", (x, y, 0.35), (0.05, 0.05, 0.7), object="table"))
+            for i, (x, y) in enumerate(((-0.45, -0.25), (0.45, -0.25), (-0.45, 0.25)))]
+    # the fourth seen over its top 0.2 m only: it hangs from the top, glued
+    stub = _seen(box("leg3", (0.45, 0.25, 0.6), (0.05, 0.05, 0.2), object="table"))
+    initial = Arrangement((top, *legs, stub), (ground(),))
+    fixed = [Contact(k, "top", "fixed") for k in ("leg0", "leg1", "leg2", "leg3")]
+    final = finalize(initial, fixed)
+    assert final.stability.stable
+    out, done = ground_parts(final, initial, candidate_edges(initial))
+    assert done == ["leg3"]
+    leg = out.cuboid("leg3")
+    np.testing.assert_allclose([leg.center[2] - leg.size[2] / 2, leg.center[2] + leg.size[2] / 2],
+                               [0.0, 0.7], atol=1e-9)
+    assert ("ground", "leg3") in {tuple(sorted((c.a, c.b))) for c in out.contacts}
+    assert out.stability.stable

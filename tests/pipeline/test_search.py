@@ -546,3 +546,47 @@ def test_a_part_seen_in_part_grows_to_its_twins_mirror_image():
     # a strip 1 cm behind the image of its twin is still that part; 3 cm behind, not
     assert complete_by_mirror(_desk(far_y=0.63), [])[1] == ["far"]
     assert complete_by_mirror(_desk(far_y=0.65), [])[1] == []
+
+
+def test_a_part_wider_than_its_twin_does_not_grow_to_its_image():
+    # room-1003 of Table 1: a table leg seen only at its foot (21 points) lies under the
+    # top's corner where another leg's mirror image falls; grown to cover both, it would
+    # span from one leg to the next.  A part whose growth would leave it wider than its
+    # twin (with twice the slack) is not the twin seen in part
+    from pipeline.symmetry import MIRROR_SLACK, complete_by_mirror
+
+    def part(cid, center, size, points):
+        return box(cid, center, size, object="table").with_(extra={"points": points})
+
+    top = part("top", (0, 0, 0.72), (1.2, 0.6, 0.03), 3000)
+    leg = part("leg", (0.55, 0.25, 0.35), (0.05, 0.05, 0.7), 300)
+    other = part("other", (0.55, -0.25, 0.35), (0.05, 0.05, 0.7), 280)
+
+    def foot(width):  # at the mirror image of ``leg`` (x = -0.55), width along y
+        return part("foot", (-0.55, 0.25 - (width - 0.05) / 2, 0.04), (0.05, width, 0.08), 21)
+
+    # a foot as wide as the leg grows to the leg's height ...
+    out, grown = complete_by_mirror(Arrangement((top, leg, other, foot(0.05)), (ground(),)), [])
+    assert grown == ["foot"]
+    np.testing.assert_allclose(out.cuboid("foot").size, [0.05, 0.05, 0.7], atol=1e-9)
+    # ... one wider than the leg by more than twice the slack does not
+    wide = foot(0.05 + 2 * MIRROR_SLACK + 0.01)
+    arr = Arrangement((top, leg, other, wide), (ground(),))
+    assert complete_by_mirror(arr, []) == (arr, [])
+
+
+def test_no_leg_is_hallucinated_where_a_part_already_stands_at_the_corner():
+    # room-1003 of Table 1: three legs seen whole, the fourth seen at its foot only (too
+    # short to pass for a leg) a centimetre beside where the half-turn copy would go:
+    # the copy made a fifth leg
+    from pipeline.symmetry import hallucinate
+
+    top = box("top", (0, 0, 0.72), (1.2, 0.6, 0.03), object="table")
+    legs = [box(f"leg{k}", (x, y, 0.35), (0.05, 0.05, 0.7), object="table")
+            for k, (x, y) in enumerate(((0.55, 0.25), (0.55, -0.25), (-0.55, -0.25)))]
+    stub = box("stub", (-0.49, 0.24, 0.04), (0.06, 0.06, 0.08), object="table")
+    out, added = hallucinate(Arrangement((top, *legs), (ground(),)), [])
+    assert len(added) == 1  # without it the fourth leg is copied ...
+    np.testing.assert_allclose(out.cuboid(added[0]).center[:2], [-0.55, 0.25], atol=1e-9)
+    with_stub = Arrangement((top, *legs, stub), (ground(),))
+    assert hallucinate(with_stub, []) == (with_stub, [])  # ... with it, nothing is
