@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
-#: An object named by an instance mask needs only this many points (clusters need more).
-MIN_INSTANCE_POINTS = 30
+#: An object named by an instance mask needs only this many points (clusters need more):
+#: as few as a box can be fitted to (:func:`pipeline.fit.fit_object`'s ``min_points``).
+#: A wall-shelf bracket under its board or a book between two others, 5 m away, shows
+#: 20-29 (a part glimpsed at its foot is then completed by the object's other parts).
+MIN_INSTANCE_POINTS = 20
 
 #: Depth jump, relative to depth, that marks a pixel as a flying pixel at an edge.
 FLYING_REL_JUMP = 0.04

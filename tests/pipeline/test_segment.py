@@ -57,6 +57,24 @@ def test_segment_objects_uses_instance_ids_and_drops_strays():
     assert (labels[1:800] == 0).all() and (labels[800:] == 1).all()
 
 
+def test_an_instance_glimpsed_with_as_few_points_as_a_box_needs_is_kept():
+    # room-1002 of Table 1: wall-shelf brackets under their boards, 5.8 m away, show
+    # 22-29 points; a box is fitted to as few as 20
+    from pipeline.fit import fit_object
+    from pipeline.segment import MIN_INSTANCE_POINTS
+
+    rng = np.random.default_rng(4)
+    big = rng.normal([0.0, 0.0, 0.5], 0.05, (800, 3))
+    glimpse = rng.normal([1.0, 0.0, 1.0], 0.01, (MIN_INSTANCE_POINTS, 3))
+    pts = np.vstack([big, glimpse, glimpse[:MIN_INSTANCE_POINTS - 1] + [1.0, 0.0, 0.0]])
+    inst = np.repeat([3, 7, 9], [800, MIN_INSTANCE_POINTS, MIN_INSTANCE_POINTS - 1])
+    labels, names = segment_objects(pts, np.ones(len(pts), bool), 0.01, instance=inst,
+                                    min_points=30)
+    assert MIN_INSTANCE_POINTS == 20 and names == ["inst3", "inst7"]
+    assert (labels[inst == 7] == 1).all() and (labels[inst == 9] == -1).all()
+    assert len(fit_object(pts[inst == 7], 0.01, rng)) == 1  # and a box is fitted to it
+
+
 def test_grabcut_splits_touching_objects_from_scribbles():
     H, W = 80, 120
     img = np.full((H, W, 3), 40, np.uint8)
