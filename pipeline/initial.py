@@ -18,7 +18,13 @@ from .fit import CELL_REL, estimate_normals, fit_object, upright_rotation
 from .model import Arrangement, Cuboid, ObservedBox
 from .planes import find_frame, scene_scale
 from .scan_io import ScanInput
-from .segment import flying_pixels, grabcut_scribbles, point_spacing, segment_objects
+from .segment import (
+    MIN_INSTANCE_POINTS,
+    flying_pixels,
+    grabcut_scribbles,
+    point_spacing,
+    segment_objects,
+)
 
 SEGMENTATIONS = ("auto", "parts", "instance", "cluster")
 #: An object needs at least this fraction of the scan's points (smaller clusters are specks).
@@ -254,7 +260,8 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         sel = labels == k
         for b in fit_object(world[sel], cell, rng, solid=solid,
                             plane_threshold=max(cell, frame.threshold), normals=normals[sel],
-                            rotation=frames.get(names[k]), single=part_of[k] is not None):
+                            rotation=frames.get(names[k]), single=part_of[k] is not None,
+                            min_points=MIN_INSTANCE_POINTS):  # (a segment has as many)
             boxes.append((k, b))
     timings["fit"] = time.perf_counter() - t
 

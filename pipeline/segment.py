@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import numpy as np
 
-#: An object named by an instance mask needs only this many points (clusters need more):
-#: as few as a box can be fitted to (:func:`pipeline.fit.fit_object`'s ``min_points``).
-#: A wall-shelf bracket under its board or a book between two others, 5 m away, shows
-#: 20-29 (a part glimpsed at its foot is then completed by the object's other parts).
-MIN_INSTANCE_POINTS = 20
+#: An object named by an instance mask needs only this many points (clusters need more;
+#: :func:`pipeline.initial.initial_cuboids` fits a box to as few).  A wall-shelf bracket
+#: under its board or a book between two others, 5 m away, shows 10-29 (a part glimpsed
+#: at its foot is then completed by the object's other parts).  Below 10, a speck of a
+#: cushion's edge made a box of its own (sofa-1003 of Table 1 100 -> 71 at 5).
+MIN_INSTANCE_POINTS = 10
 
 #: Depth jump, relative to depth, that marks a pixel as a flying pixel at an edge.
 FLYING_REL_JUMP = 0.04

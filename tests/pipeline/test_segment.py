@@ -59,7 +59,7 @@ def test_segment_objects_uses_instance_ids_and_drops_strays():
 
 def test_an_instance_glimpsed_with_as_few_points_as_a_box_needs_is_kept():
     # room-1002 of Table 1: wall-shelf brackets under their boards, 5.8 m away, show
-    # 22-29 points; a box is fitted to as few as 20
+    # 10-29 points; initial_cuboids fits a box to as few as an instance needs
     from pipeline.fit import fit_object
     from pipeline.segment import MIN_INSTANCE_POINTS
 
@@ -70,9 +70,15 @@ def test_an_instance_glimpsed_with_as_few_points_as_a_box_needs_is_kept():
     inst = np.repeat([3, 7, 9], [800, MIN_INSTANCE_POINTS, MIN_INSTANCE_POINTS - 1])
     labels, names = segment_objects(pts, np.ones(len(pts), bool), 0.01, instance=inst,
                                     min_points=30)
-    assert MIN_INSTANCE_POINTS == 20 and names == ["inst3", "inst7"]
+    assert MIN_INSTANCE_POINTS == 10 and names == ["inst3", "inst7"]
     assert (labels[inst == 7] == 1).all() and (labels[inst == 9] == -1).all()
-    assert len(fit_object(pts[inst == 7], 0.01, rng)) == 1  # and a box is fitted to it
+    # and a box is fitted to it (one part, as initial_cuboids asks), not to fewer
+    from pipeline.fit import estimate_normals
+
+    for sel, boxes in ((inst == 7, 1), (inst == 9, 0)):
+        got = fit_object(pts[sel], 0.01, rng, normals=estimate_normals(pts[sel], 0.03),
+                         single=True, min_points=MIN_INSTANCE_POINTS)
+        assert len(got) == boxes
 
 
 def test_grabcut_splits_touching_objects_from_scribbles():
