@@ -27,6 +27,8 @@ ROW_AXES_DEG = 15.0
 ROW_REST_GAP = 0.04
 #: Only boxes at least this many times as tall as they are wide along the row take part.
 ROW_MIN_HEIGHT_REL = 2.0
+#: The image orders a row unless the camera looks along it, within this cosine.
+ROW_ALONG_COS = float(np.cos(np.radians(20.0)))
 #: A split that leaves a box narrower than this along the row (metres) is not made.
 ROW_MIN_WIDTH = 0.005
 
@@ -97,12 +99,17 @@ def _row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views: list) -> float:
     """Where ``c`` lies along the row (support ``s``'s long axis ``X``): measured in the
     image where the scan is one view (depth noise moves a box's centre along its ray,
     which the image does not see), else along ``X`` (a box fitted to the points of
-    several views is not noisy along any one view's rays)."""
+    several views is not noisy along any one view's rays; a view looking along the row,
+    within :data:`ROW_ALONG_COS`, sees its boxes one behind the other)."""
     if len(views) != 1:
         return float((c.center - s.center) @ X)
     from .camera import invert, project, transform
 
     v = views[0]
+    ray = s.center - np.asarray(v.T_world_cam, float)[:3, 3]
+    if abs(float(ray @ X)) > ROW_ALONG_COS * float(np.linalg.norm(ray)):
+        # looking along the row: the boxes' centres fall on nearly one image point
+        return float((c.center - s.center) @ X)
     # where the sensor put it (the overlap repair since moved it across the row, which
     # is not along the ray)
     at = c.observed.center if c.observed is not None else c.center

@@ -97,12 +97,12 @@ def test_row_order_ignores_depth_noise_along_the_ray():
 
 def test_a_book_does_not_go_back_into_space_the_sensor_saw_empty():
     intr = Intrinsics.kinect_v1()
-    # from the open end of the row: the space behind the last book (the frame twice: a
-    # scan of several views, whose boxes are ordered along the row as fitted)
+    # from the open end of the row, looking along it (the boxes are then ordered as
+    # fitted): the space behind the last book
     T = look_at((1.0, -0.08, 0.75), (-0.25, -0.08, 0.63))
     arr = _zigzag()
     # the scene really is what was fitted: nothing behind the last book ...
-    empty = [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)] * 2
+    empty = [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)]
     out, changed = resolve_rows(arr, empty)
     assert changed == ["a", "b", "c"]  # (still split side by side)
     np.testing.assert_allclose(_x(out.cuboid("c")), (-0.2475, -0.205), atol=1e-12)
@@ -111,6 +111,6 @@ def test_a_book_does_not_go_back_into_space_the_sensor_saw_empty():
     deep = [c if c.id != "c" else c.with_(center=np.array([c.center[0], -0.095, c.center[2]]),
                                           size=np.array([c.size[0], 0.09, c.size[2]]))
             for c in arr.cuboids]
-    hidden = [DepthView(_depth_of_boxes(deep, T, intr), intr, T)] * 2
+    hidden = [DepthView(_depth_of_boxes(deep, T, intr), intr, T)]
     out, _ = resolve_rows(arr, hidden)
     np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.05), atol=1e-12)
