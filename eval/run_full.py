@@ -139,6 +139,9 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
               f"| visibility check | {rep['visibility']} |",
               f"| overlaps repaired | {rep['repaired_overlaps']} |",
               f"| hallucinated parts | {', '.join(rep['hallucinated']) or 'none'} |",
+              f"| deepened (seen face-on) | {', '.join(rep.get('deepened', [])) or 'none'} |",
+              f"| grown behind the part that hides them | "
+              f"{', '.join(rep.get('reached_occluders', [])) or 'none'} |",
               f"| fixed contacts chosen (beyond same-object fusions) | {rep['fixed_chosen']} |",
               f"| added volume (m^3) | {rep['added_volume_m3']:.4g} |",
               f"| largest contact gap closed (mm) | {1000 * rep.get('gap_closed_m', 0.0):.3g} |"]

@@ -631,6 +631,118 @@ def deepen_thin_boxes(arr: Arrangement, views: list[DepthView], margin: float = 
     return arr, deepened
 
 
+#: A box grows towards the camera, behind a broad part that hides it, by at most this
+#: fraction of its widest horizontal extent (:func:`reach_occluders`).
+REACH_MAX_REL = 1.0
+#: ... and only across a gap wider than this (metres): a box that touches stays as it is.
+REACH_MIN = 1e-3
+#: ... when the added slab lies behind that part, as seen from the first view, for at
+#: least this fraction of its samples.
+SHADOW_FRACTION_MIN = 0.9
+#: ... and the box is turned onto the part's axes when their yaws differ by at most this.
+REACH_SQUARE_MAX_DEG = 15.0
+
+
+def in_shadow(points: np.ndarray, eye: np.ndarray, box: Cuboid) -> np.ndarray:
+    """Per point of ``points``: whether the segment from ``eye`` to it passes through
+    ``box`` (the box hides the point from a camera at ``eye``)."""
+    half = box.size / 2
+    p0 = (np.asarray(eye, float) - box.center) @ box.rotation  # in the box's frame
+    d = (np.asarray(points, float) - box.center) @ box.rotation - p0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = (-half - p0) / d
+        t2 = (half - p0) / d
+    lo = np.where(np.abs(d) < 1e-12, np.where(np.abs(p0) <= half, -np.inf, np.inf),
+                  np.minimum(t1, t2))
+    hi = np.where(np.abs(d) < 1e-12, np.where(np.abs(p0) <= half, np.inf, -np.inf),
+                  np.maximum(t1, t2))
+    enter = np.maximum(lo.max(axis=1), 0.0)
+    leave = np.minimum(hi.min(axis=1), 1.0)
+    return enter < leave
+
+
+def reach_occluders(arr: Arrangement, views: list[DepthView], margin: float = 0.0
+                    ) -> tuple[Arrangement, list[str]]:
+    """Grow a box towards the camera, through the shadow of a broad part in front of it,
+    until it touches that part.
+
+    Seen from behind a sofa, each seat cushion shows a strip of its top along its
+    front: the sofa's back hides the rest, and the cushion really reaches back to it.
+    A fitted (not hallucinated) upright box whose horizontal face looks towards the
+    first view's camera, with a box showing a broad face (:data:`BROAD_FACE_AREA`)
+    ahead of it across its whole face, is turned onto that box's axes (when within
+    :data:`REACH_SQUARE_MAX_DEG` in yaw) and grown to touch it when the gap is at most
+    :data:`REACH_MAX_REL` of the box's widest horizontal extent, the added slab lies
+    behind the broad box as seen from the camera (:func:`in_shadow`,
+    :data:`SHADOW_FRACTION_MIN` of its samples), no view saw any of it empty, and no other
+    box is entered.  Without views nothing changes.  Returns the arrangement and the ids
+    grown.
+    """
+    from .extend import Extension, slab_samples, visible_free_fraction
+    from .model import rotation_about_axis
+
+    if not views:
+        return arr, []
+    eye = np.asarray(views[0].T_world_cam, float)[:3, 3]
+    grown = []
+    for k in range(len(arr.cuboids)):
+        c = arr.cuboids[k]
+        if (c.observed is None or c.extra.get("hallucinated") or c.extra.get("slanted")
+                or abs(c.rotation[2]).max() < 1 - 1e-6):
+            continue
+        to_eye = eye - c.center
+        to_eye[2] = 0.0
+        if np.linalg.norm(to_eye) < 1e-9:
+            continue
+        to_eye /= np.linalg.norm(to_eye)
+        widest = max(float(c.size[a]) for a in range(3) if abs(c.rotation[2, a]) <= 0.5)
+        best = None
+        for axis in range(3):
+            if abs(c.rotation[2, axis]) > 0.5:
+                continue
+            for side in (0, 1):
+                u = c.rotation[:, axis] * (1.0 if side else -1.0)
+                if float(u @ to_eye) <= 0.0:
+                    continue
+                face = float(c.center @ u + c.size[axis] / 2)
+                for o in arr.cuboids:
+                    if o.id == c.id or abs(o.rotation[2]).max() < 1 - 1e-6:
+                        continue
+                    if not _broad_face(o, -u) or not _overlap_across(c, o, u):
+                        continue
+                    g = float((o.corners() @ u).min()) - face
+                    if REACH_MIN < g <= REACH_MAX_REL * widest and (best is None or g < best[0]):
+                        best = (g, axis, side, o)
+        if best is None:
+            continue
+        _, axis, side, o = best
+        # onto the broad box's axes (a strip's yaw is a guess), then the gap again
+        ax_c = next(a for a in range(3) if abs(c.rotation[2, a]) < 0.5)
+        ax_o = next(a for a in range(3) if abs(o.rotation[2, a]) < 0.5)
+        turn = ((np.arctan2(o.rotation[1, ax_o], o.rotation[0, ax_o])
+                 - np.arctan2(c.rotation[1, ax_c], c.rotation[0, ax_c]) + np.pi / 4)
+                % (np.pi / 2) - np.pi / 4)
+        if abs(np.degrees(turn)) > REACH_SQUARE_MAX_DEG:
+            continue
+        sq = c.with_(rotation=rotation_about_axis([0.0, 0.0, 1.0], turn) @ c.rotation)
+        u = sq.rotation[:, axis] * (1.0 if side else -1.0)
+        g = float((o.corners() @ u).min()) - float(sq.center @ u + sq.size[axis] / 2)
+        if g <= REACH_MIN or g > REACH_MAX_REL * widest:
+            continue
+        base = arr.with_(cuboids=tuple(sq if i == k else b for i, b in enumerate(arr.cuboids)))
+        x = Extension(k, axis, side, g)
+        samples = slab_samples(base, x)
+        if (in_shadow(samples, eye, o).mean() < SHADOW_FRACTION_MIN
+                or visible_free_fraction(samples, views, margin) > 0.0):
+            continue
+        trial = _deepened(base, k, axis, u, g)
+        if any(c.id in (p, q) for p, q, _ in find_contacts(trial).penetrations):
+            continue
+        arr = trial
+        grown.append(c.id)
+    return arr, grown
+
+
 def _settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
     """``arr`` with the overlaps of box ``cid`` cleared where they are a box resting on
     another (:func:`_resting_cut`) or where ``cid`` reaches into the other by at most a
@@ -1842,21 +1954,34 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
         cands.append((cut, low))
     if not cands:
         return final, []
-    # supports side by side with tops at one height: one box (in the first one's frame)
-    groups: list[list[int]] = []
-    for i, (_, low) in enumerate(cands):
-        for g in groups:
-            first = cands[g[0]][1]
-            if (_same_axes(low, first) and _gap(low, first) < HIDDEN_MERGE_GAP
-                    and abs(_z_range(low)[1] - _z_range(first)[1]) < HIDDEN_MERGE_GAP):
-                g.append(i)
-                break
-        else:
-            groups.append([i])
+    def beside(i: int, j: int) -> bool:
+        a, b = cands[i][1], cands[j][1]
+        return (_same_axes(a, b) and _gap(a, b) < HIDDEN_MERGE_GAP
+                and abs(_z_range(a)[1] - _z_range(b)[1]) < HIDDEN_MERGE_GAP)
+
+    def grouped(members: list[int], chain: bool) -> list[list[int]]:
+        """Supports side by side with tops at one height, as groups: beside any box of
+        the group (``chain``: a row of three cushions) or beside its first one."""
+        out: list[list[int]] = []
+        for i in members:
+            for g in out:
+                if any(beside(i, j) for j in (g if chain else g[:1])):
+                    g.append(i)
+                    break
+            else:
+                out.append([i])
+        return out
+
+    # each group becomes one box (in its first box's frame); a row that cannot (the
+    # merged box grazes an arm) is tried again as the boxes beside its first one
+    groups = grouped(list(range(len(cands))), chain=True)
     objects = {c.object for c in final.cuboids if c.object is not None and parts[c.object] > 1}
     added: list[str] = []
     current = final
-    for n, g in enumerate(groups):
+    n = -1
+    while groups:
+        g = groups.pop(0)
+        n += 1
         low = cands[g[0]][1]
         for i in g[1:]:
             low = _merge(low, cands[i][1])
@@ -1897,17 +2022,19 @@ def hidden_supports(final: Arrangement, mu: float = 0.7, threshold: float | None
                               + (support,), stability=None)
         changed = set(cut) | {new_id}
         cs = find_contacts(trial)
-        if any(a in changed or b in changed for a, b, _ in cs.penetrations):
-            continue
-        fixed = [c for c in current.contacts if c.type == "fixed"]
-        touching = cs.lookup()
-        fixed += [Contact(new_id, c.id, "fixed") for c in trial.cuboids
-                  if c.object == support.object and c.id != new_id
-                  and tuple(sorted((new_id, c.id))) in touching]
-        cand = finalize(trial, fixed, mu=mu, threshold=threshold)
-        if cand.stability is not None and cand.stability.stable:
+        cand = None
+        if not any(a in changed or b in changed for a, b, _ in cs.penetrations):
+            fixed = [c for c in current.contacts if c.type == "fixed"]
+            touching = cs.lookup()
+            fixed += [Contact(new_id, c.id, "fixed") for c in trial.cuboids
+                      if c.object == support.object and c.id != new_id
+                      and tuple(sorted((new_id, c.id))) in touching]
+            cand = finalize(trial, fixed, mu=mu, threshold=threshold)
+        if cand is not None and cand.stability is not None and cand.stability.stable:
             current = cand
             added.append(new_id)
+        elif len(g) > 1 and len(parts_of := grouped(g, chain=False)) > 1:
+            groups[:0] = parts_of
     return current, added
 
 
@@ -2067,6 +2194,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
 
     arr, rows = resolve_rows(arr, views, margin)
     arr, deepened = deepen_thin_boxes(arr, views, margin)
+    arr, reached = reach_occluders(arr, views, margin)
     arr, connectors = hidden_connectors(arr, views, margin)
     arr, joined_parts = join_parts(arr, views=views, margin=margin)
     hallucinated = []
@@ -2190,6 +2318,7 @@ def imagine(arr: Arrangement, views: list[DepthView] | None = None, *, budget: f
         "fixed_chosen": result.n_fixed,
         "object_joins": joins,
         "deepened": deepened,
+        "reached_occluders": reached,
         "rows": rows,
         "joined_parts": joined_parts,
         "set_aside": [c.id for c in aside],

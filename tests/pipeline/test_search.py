@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from pipeline.camera import Intrinsics, look_at
+from pipeline.contacts import find_contacts
 from pipeline.extend import DepthView, candidate_edges, prune_by_visibility
 from pipeline.imagine import imagine
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
@@ -382,6 +383,50 @@ def test_a_hidden_seat_reaches_out_to_the_arms_and_back_its_cushions_fall_short_
     t = _types(out)
     assert t[("back", "hidden0")] == t[("arm0", "hidden0")] == t[("arm1", "hidden0")] == "fixed"
     assert t[("cushion0", "hidden0")] == t[("cushion1", "hidden0")] == "touch"
+
+
+def _three_cushions(first_yaw_deg: float = 0.0):
+    """A sofa (back, two arms) whose seat is hidden under three cushions 3 cm apart:
+    the first and the third are 63 cm apart, beside each other only through the middle
+    one; the first may be turned ``first_yaw_deg`` about its centre."""
+    back = box("back", (0, 0.4, 0.425), (2.0, 0.2, 0.85), object="sofa")
+    arms = [box(f"arm{k}", (s * 0.9, 0, 0.3), (0.2, 0.6, 0.6), object="sofa")
+            for k, s in enumerate((-1, 1))]
+    cushions = [box(f"cushion{k}", (x, -0.01, 0.405), (0.5, 0.58, 0.09), object=f"cushion{k}",
+                    yaw=np.radians(first_yaw_deg if k == 0 else 0.0))
+                for k, x in enumerate((-0.53, 0.0, 0.53))]
+    return Arrangement((back, *arms, *cushions), (ground(),))
+
+
+def test_three_cushions_in_a_row_share_one_hidden_seat():
+    # sofa-1001 of Table 1: the third cushion is beside the second, not the first; all
+    # three rest on one seat (the rule that compared each with the first made two)
+    res = imagine(_three_cushions(), budget=5)
+    out = res.arrangement
+    assert res.report["hidden_supports"] == ["hidden0"] and out.stability.stable
+    seat = out.cuboid("hidden0")
+    lo, hi = seat.corners().min(axis=0), seat.corners().max(axis=0)
+    np.testing.assert_allclose([lo[0], hi[0]], [-0.8, 0.8], atol=1e-9)  # arm to arm
+    t = _types(out)
+    assert all(t[(f"cushion{k}", "hidden0")] == "touch" for k in range(3))
+    assert t[("arm0", "hidden0")] == t[("arm1", "hidden0")] == "fixed"
+
+
+def test_a_row_whose_one_seat_would_enter_the_back_gets_one_seat_per_cushion_pair():
+    # room-1101 of held-out Table 1: the first cushion is fitted 1.5 degrees askew, and
+    # one box in its frame around all three cushions enters the back; the row is tried
+    # again as the boxes beside the first (the first two) and the rest (the third)
+    arr = _three_cushions(first_yaw_deg=1.5)
+    res = imagine(arr, budget=5)
+    out = res.arrangement
+    assert len(res.report["hidden_supports"]) == 2 and out.stability.stable
+    assert not find_contacts(out).penetrations
+    t = _types(out)
+    under = {k: {p for p in res.report["hidden_supports"] if (f"cushion{k}", p) in t}
+             for k in range(3)}
+    assert under[0] == under[1] and len(under[0]) == 1 and len(under[2]) == 1
+    assert under[2] != under[0]
+    assert not any((f"cushion{k}", "ground") in t for k in range(3))
 
 
 def test_a_lone_box_seen_only_at_its_top_stays_one_tall_box():
