@@ -6,7 +6,9 @@ largest horizontal area) and two or three legs below it (upright parts taller th
 wide) whose positions in the top's frame occupy two or three of its four quadrants
 gets the missing legs: each is the diagonally opposite leg turned half a turn about the
 top's vertical axis (independent of the top's yaw), or, when that leg is missing too, a
-leg of a neighbouring quadrant mirrored.  An object of just a top and one part under
+leg of a neighbouring quadrant mirrored.  With both legs seen at one end, the top first
+grows towards the other end up to where a depth view saw past its edge
+(:func:`_grown_to_seen_edge`): a far strip lost to noise would put the copies short.  An object of just a top and one part under
 one end of it (a wall shelf's board and one of its brackets, a desk's top and one side)
 gets that part's mirror image under the other end.  An object whose top has a twin
 (another object's top of the same size right above or below it: wall shelves hung one
@@ -245,6 +247,42 @@ def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 
     return arr.with_(cuboids=arr.cuboids + tuple(added)), [c.id for c in added]
 
 
+#: A top whose hidden legs are copied is grown towards them in steps of this much
+#: (metres) ...
+EDGE_STEP = 0.01
+#: ... by at most this fraction of its extent there.
+EDGE_MAX_REL = 0.5
+
+
+def _grown_to_seen_edge(arr: Arrangement, top: Cuboid, axis: int, side: int,
+                        views: list[DepthView], margin: float) -> Cuboid | None:
+    """``top`` grown along ``axis`` towards ``side`` up to where a view saw the space
+    beyond it empty (the far edge of a table whose far strip the sensor lost to noise or
+    to what stands on it), or None: when the first step is already seen empty, when no
+    step within :data:`EDGE_MAX_REL` of its extent is (nothing says where the edge is),
+    or when the growth would enter another box."""
+    if not views:
+        return None
+    u = top.rotation[:, axis] * (1.0 if side else -1.0)
+    steps = int(EDGE_MAX_REL * float(top.size[axis]) / EDGE_STEP)
+    others = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id != top.id))
+    for j in range(steps + 1):
+        base = j * EDGE_STEP
+        size = top.size.copy()
+        size[axis] = EDGE_STEP
+        # the slab of the next step, beyond what is grown so far
+        face = top.center + u * (float(top.size[axis]) / 2 + base + EDGE_STEP / 2)
+        slab = top.with_(center=face, size=size)
+        if visible_free_fraction(_box_samples(slab), views, margin) > 0.0:
+            if j == 0:
+                return None
+            size = top.size.copy()
+            size[axis] += base
+            grown = top.with_(center=top.center + u * base / 2, size=size)
+            return grown if _free(others, grown) else None
+    return None
+
+
 def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                 ) -> tuple[Arrangement, list[str]]:
     """Add mirrored legs where two or three are seen, and the mirror image of a top's one
@@ -287,6 +325,19 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
         quads = [(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]]
         if len(set(quads)) != len(quads) or any(0 in q for q in quads):
             continue
+        if len(legs) == 2 and up == 2:
+            # both legs seen at one end: the top's other end may be short of the truth
+            # (its far strip lost), and legs copied about its centre would come short by
+            # as much; it first grows to where the sensor saw past its edge
+            for a in (0, 1):
+                if quads[0][a] == quads[1][a]:
+                    grown = _grown_to_seen_edge(arr.with_(cuboids=arr.cuboids + tuple(added)),
+                                                top, a, int(quads[0][a] < 0), views, margin)
+                    if grown is not None:
+                        arr = arr.with_(cuboids=tuple(grown if c.id == top.id else c
+                                                      for c in arr.cuboids))
+                        local = local - (top.rotation.T @ (grown.center - top.center))[None]
+                        top = grown
         # a quadrant where some other part of the object stands below the top (a leg
         # seen only at its foot, too short to pass for a leg) has its leg
         held = set()
