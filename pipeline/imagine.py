@@ -685,8 +685,13 @@ def reach_occluders(arr: Arrangement, views: list[DepthView], margin: float = 0.
         return arr, []
     eye = np.asarray(views[0].T_world_cam, float)[:3, 3]
     grown = []
+    # the parts that could hide a box: upright, with some face broad enough
+    broad = [o.id for o in arr.cuboids if abs(o.rotation[2]).max() >= 1 - 1e-6
+             and float(np.prod(o.size) / o.size.min()) >= BROAD_FACE_AREA]
     for k in range(len(arr.cuboids)):
         c = arr.cuboids[k]
+        if not broad:
+            break
         if (c.observed is None or c.extra.get("hallucinated") or c.extra.get("slanted")
                 or abs(c.rotation[2]).max() < 1 - 1e-6):
             continue
@@ -705,8 +710,8 @@ def reach_occluders(arr: Arrangement, views: list[DepthView], margin: float = 0.
                 if float(u @ to_eye) <= 0.0:
                     continue
                 face = float(c.center @ u + c.size[axis] / 2)
-                for o in arr.cuboids:
-                    if o.id == c.id or abs(o.rotation[2]).max() < 1 - 1e-6:
+                for o in (arr.cuboid(i) for i in broad):
+                    if o.id == c.id:
                         continue
                     if not _broad_face(o, -u) or not _overlap_across(c, o, u):
                         continue
