@@ -93,7 +93,11 @@ def _mirror_support(top: Cuboid, part: Cuboid, obj: str, n: int) -> Cuboid | Non
     h_part, _ = _upright_extent(part)
     top_bottom = float(top.center[2] - top.size[up] / 2)
     part_top = float(part.center[2] + h_part / 2)
-    inside = all(abs(p[k]) <= top.size[k] / 2 for k in horiz)
+    # over the top's footprint: a side panel flush with the top's end has its centre
+    # just outside a top whose end strip the sensor lost
+    reach = np.abs(top.rotation.T @ part.rotation) @ part.size / 2
+    inside = all(abs(p[k]) <= top.size[k] / 2 + min(float(reach[k]), MIRROR_SLACK)
+                 for k in horiz)
     if not (inside and abs(part_top - top_bottom) <= 0.1 * length
             and abs(p[long_ax]) > 0.25 * length):
         return None
@@ -458,6 +462,9 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
                 # foot and the image of another leg 30 cm off are two legs, not one
                 twin_size = np.abs(part.rotation.T @ seen.rotation) @ seen.size
                 horiz = np.abs(part.rotation[2]) < 0.5
+                # (a twin seen face-on as a sliver is at least twice the slack thick: its
+                # depth is not in the data, and the part's own fit may be wider)
+                twin_size = np.maximum(twin_size, 2 * MIRROR_SLACK)
                 if np.any(((hi - lo) > twin_size + 2 * MIRROR_SLACK) & horiz):
                     continue
                 new = part.with_(center=part.rotation @ ((lo + hi) / 2), size=hi - lo)

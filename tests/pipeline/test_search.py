@@ -593,6 +593,38 @@ def test_a_part_seen_in_part_grows_to_its_twins_mirror_image():
     assert complete_by_mirror(_desk(far_y=0.65), [])[1] == []
 
 
+def test_a_strip_grows_to_the_image_of_a_sliver_twin_past_a_short_top():
+    # desk-1002 of Table 1: the top lost its end strips (1.18 m of 1.22), so the near
+    # side panel, seen face-on as a 7 mm sliver flush with the true end, has its centre
+    # just past the shortened top; the far panel, seen as a 6 cm wide strip at its front
+    # edge, is wider than that sliver's measured thickness.  It is still the sliver's
+    # twin: it grows to the image, as deep and tall as the near panel
+    from pipeline.symmetry import complete_by_mirror
+
+    def desk(near_y, strip_width):
+        def part(cid, center, size, points):
+            return box(cid, center, size, object="desk").with_(extra={"points": points})
+
+        top = part("top", (0, 0, 0.735), (0.7, 1.3, 0.03), 4000)
+        near = part("near", (0, near_y, 0.36), (0.7, 0.007, 0.72), 1200)
+        far = part("far", (0.29, 0.69 - strip_width / 2, 0.58), (0.12, strip_width, 0.28), 56)
+        return Arrangement((top, near, far), (ground(),))
+
+    for near_y, width in ((-0.652, 0.04), (-0.645, 0.06), (-0.652, 0.06)):
+        out, grown = complete_by_mirror(desk(near_y, width), [])
+        assert grown == ["far"], (near_y, width)
+        far = out.cuboid("far")
+        lo, hi = far.center - far.size / 2, far.center + far.size / 2
+        np.testing.assert_allclose(lo, [-0.35, min(0.69 - width, -near_y - 0.0035), 0.0],
+                                   atol=1e-9)
+        np.testing.assert_allclose(hi, [0.35, 0.69, 0.72], atol=1e-9)
+    # a panel whose centre lies 3 cm past the top's end does not stand under it, and a
+    # strip 12 cm wide is not the twin of a sliver: neither grows
+    for near_y, width in ((-0.68, 0.04), (-0.645, 0.12)):
+        arr = desk(near_y, width)
+        assert complete_by_mirror(arr, []) == (arr, []), (near_y, width)
+
+
 def test_a_part_wider_than_its_twin_does_not_grow_to_its_image():
     # room-1003 of Table 1: a table leg seen only at its foot (21 points) lies under the
     # top's corner where another leg's mirror image falls; grown to cover both, it would
