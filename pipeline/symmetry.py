@@ -81,7 +81,8 @@ def _free(arr: Arrangement, cand: Cuboid) -> bool:
 def _mirror_support(top: Cuboid, part: Cuboid, obj: str, n: int) -> Cuboid | None:
     """The mirror image of ``part`` across the plane through ``top``'s centre across its
     longer horizontal axis, when ``part`` stands under ``top`` (its top within a tenth of
-    the top's length of the top's bottom, its centre inside the top's footprint) towards
+    the top's length of the top's bottom, its centre inside the top's footprint or past
+    its edge by at most its own half extent there, up to :data:`MIRROR_SLACK`) towards
     one end (off the centre by over a quarter of the top's length): the second bracket
     of a wall shelf's board, the second side of a desk."""
     zc = np.abs(top.rotation[2, :])
@@ -399,15 +400,16 @@ def complete_by_mirror(arr: Arrangement, views: list[DepthView], margin: float =
 
     The two sides of a desk, the two brackets of a board: an object's part under one
     end of its top whose mirror image across the top's centre (:func:`_mirror_support`)
-    of another of its parts, as the sensor saw that part (its observed box), overlaps it, with axes parallel (within
-    :data:`MIRROR_AXES_DEG`), is the same part seen from another side: the one seen with
-    fewer points grows to the bounding box of itself and that image, where the image
-    reaches past it by at least :data:`MIRROR_MIN_GROWTH` (a desk's far side, seen
-    as a 13 cm strip at its front edge, becomes as deep as its near side), never above
-    the top's underside, and never wider across than the twin by more than twice
-    :data:`MIRROR_SLACK`.  The growth is kept where it enters no other box (overlaps the
-    part already had may stay) and no view saw its space empty.  Returns the
-    arrangement and the ids grown.
+    of another of its parts, as the sensor saw that part (its observed box), overlaps
+    it, with axes parallel (within :data:`MIRROR_AXES_DEG`), is the same part seen from
+    another side: the one seen with fewer points grows to the bounding box of itself and
+    that image, where the image reaches past it by at least :data:`MIRROR_MIN_GROWTH` (a
+    desk's far side, seen as a 13 cm strip at its front edge, becomes as deep as its
+    near side), never above the top's underside, and never wider across than the twin
+    by more than twice :data:`MIRROR_SLACK` (a twin seen face-on as a thinner sliver
+    counts as twice that thick).  The growth is kept where it enters no other box
+    (overlaps the part already had may stay) and no view saw its space empty.  Returns
+    the arrangement and the ids grown.
     """
     by_object: dict[str, list[int]] = {}
     for k, c in enumerate(arr.cuboids):
