@@ -918,6 +918,8 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     C, R, S = arr.centers, arr.rotations, arr.sizes
     ii, jj = candidate_pairs(C, R, S, max_ext)
     corners = box_corners(C, R, S)
+    floor = next((float(s.point[2]) for s in arr.supports
+                  if s.id == "ground" and s.normal[2] > 0.99), None)
     out = []
     for i, j in zip(ii.tolist(), jj.tolist()):
         ci, cj = arr.cuboids[i], arr.cuboids[j]
@@ -957,9 +959,17 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                             vol = x1.volume(S) + x2.volume(S)
                             # a part hanging over the other's end grows down past it
                             # (its bottom there is where the other hid it) rather than
-                            # the other sliding in under it
-                            down = int(not (sgn * u[2] < -0.9 and _z_range(
-                                arr.cuboids[a])[0] >= _z_range(arr.cuboids[b])[1] - tol))
+                            # the other sliding in under it, when that takes it down
+                            # near the floor (a shelf's side panel past its bottom
+                            # board); one that would end hanging beside the other, far
+                            # above the floor (a chair's back beside its seat), rests
+                            # on it instead
+                            down = 1
+                            if sgn * u[2] < -0.9 and _z_range(
+                                    arr.cuboids[a])[0] >= _z_range(arr.cuboids[b])[1] - tol:
+                                low = _z_range(grown)[0]
+                                down = 0 if floor is not None and low - floor <= \
+                                    SHORT_JOIN * (_z_range(grown)[1] - low) else 2
                             if best is None or (down, vol) < best_key:
                                 best, best_key = Option("fixed", (x1, x2), vol), (down, vol)
         if best is not None:

@@ -5,6 +5,7 @@ part, hallucinated boxes not widened to close gaps."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pipeline.model import Arrangement, box, ground, rotation_about_z
 from tests.pipeline.test_imagine import _depth_of_boxes
@@ -181,3 +182,34 @@ def test_a_panel_fitted_down_to_a_boards_top_reaches_past_it_across_the_corner()
     assert first.length >= 0.05 - 1e-9
     assert (second.box, second.axis, second.side) == (0, 0, 1)  # the board, to the panel
     assert abs(second.length - 0.02) < 1e-6
+
+
+def test_a_chair_back_just_behind_its_seat_rests_on_it_across_the_corner():
+    # chair-1003 of Table 1: the back (2 cm thick) stands 0.5 mm behind the seat's rear
+    # edge and 6.5 mm above its top.  Grown down past the seat it would hang beside the
+    # seat's rear face 43 cm above the floor, its bottom on a leg's top (a contact the
+    # chair does not have); the seat slides in under it and it rests on the seat.  The
+    # same panel with the seat's bottom near the floor (a shelf's bottom board) still
+    # grows down past it
+    from pipeline.imagine import _corner_joins
+
+    def chair(seat_z):
+        seat = box("seat", (0, 0, seat_z), (0.43, 0.42, 0.029), object="c")
+        top = seat_z + 0.0145 + 0.0065
+        back = box("back", (-0.215 - 0.0005 - 0.0105, 0, top + 0.186), (0.021, 0.42, 0.372),
+                   object="c")
+        return Arrangement((seat, back), (ground(),))
+
+    joins = _corner_joins(chair(0.442), 0.3, set())
+    assert len(joins) == 1
+    first, second = joins[0][2].extensions
+    assert (first.box, first.axis, first.side) == (0, 0, 0)  # the seat, back under it
+    assert first.length == pytest.approx(0.0005 + 0.021)
+    assert (second.box, second.axis, second.side) == (1, 2, 0)  # the back, down onto it
+    assert second.length == pytest.approx(0.0065)
+    # near the floor the back reaches down past the seat, as a shelf's side panel does
+    joins = _corner_joins(chair(0.03), 0.3, set())
+    first, second = joins[0][2].extensions
+    assert (first.box, first.axis, first.side) == (1, 2, 0)
+    assert first.length == pytest.approx(0.0065 + 0.029)
+    assert (second.box, second.axis, second.side) == (0, 0, 0)
