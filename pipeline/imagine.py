@@ -902,10 +902,13 @@ def _corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     panel), then the other's face reaches it (the panel up to the top).  Both must be
     short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
     touch.  Smallest added volume first, except that a part hanging above the other's
-    end grows down past it first where it can (a shelf's side panel, fitted down to the
-    top of the bottom board in front of it, reaches past the board and the board meets
-    its face, rather than the board sliding in under the panel and the panel standing on
-    it, out of the floor's reach).  Pairs in ``skip`` (touching, or joined by one extension) are not tried.
+    end grows down past it first where that takes its bottom near the floor (within
+    :data:`pipeline.search.SHORT_JOIN` of its height: a shelf's side panel, fitted down
+    to the top of the bottom board in front of it, reaches past the board and the board
+    meets its face, rather than the board sliding in under the panel and the panel
+    standing on it, out of the floor's reach), and last where it would end hanging
+    beside the other far above the floor (a chair's back rests on its seat).  Pairs in
+    ``skip`` (touching, or joined by one extension) are not tried.
     """
     from .contacts import candidate_pairs
     from .extend import Extension, Option
