@@ -70,7 +70,7 @@ from .stability import check_stability
 log = logging.getLogger(__name__)
 
 #: Groups with at most this many edges are searched exhaustively (within the budget);
-#: larger ones get a greedy dive followed by single-edge improvements.
+#: larger ones get a greedy dive followed by single-edge improvements and join swaps.
 EXACT_MAX_EDGES = 10
 #: The search accepts an arrangement only if it also stands with gravity tilted by this
 #: many degrees (see ``check_stability(tilt_deg=...)``): no knife-edge explanations.
@@ -617,8 +617,9 @@ class _Group:
 
     def improve(self, assignment: tuple[int, ...], deadline: float,
                 keep=None) -> tuple[int, ...]:
-        """Single-edge moves to cheaper options while any lowers the cost (local optimum);
-        ``keep``: a further test a stable move must pass."""
+        """Single-edge moves to cheaper options while any lowers the cost, then
+        :meth:`_join_swaps` (local optimum); ``keep``: a further test a stable move must
+        pass."""
         current = tuple(assignment)
         cost = self.cost(current)
         changed = True
@@ -642,7 +643,43 @@ class _Group:
                 if time.perf_counter() > deadline:
                     self.stats.budget_spent = True
                     break
+            if not changed and time.perf_counter() < deadline:
+                for trial in self._join_swaps(current):
+                    c = self.cost(trial)
+                    if c >= cost:
+                        continue
+                    self.stats.nodes += 1
+                    ok, _ = self.evaluate(trial)
+                    if ok and (keep is None or keep(trial)):
+                        current, cost, changed = trial, c, True
+                        break
         return current
+
+    def _join_swaps(self, assignment: tuple[int, ...]):
+        """Assignments that move one extended join of two parts of an object to another
+        join of one of those parts: two edges at once, which no single-edge move reaches
+        (dropping the join alone leaves the object in two pieces, adding the other alone
+        adds volume).  A table leg seen at its foot is joined to the top by its own short
+        reach up rather than by its neighbour leg growing 30 cm sideways to it."""
+        joined = [lv for lv in self._joins
+                  if self.options[lv][assignment[lv]].type == "fixed"
+                  and self.options[lv][assignment[lv]].extensions]
+        for lv in joined:
+            e = self.edges[lv]
+            apart = [i for i, o in enumerate(self.options[lv]) if o.type != "fixed"]
+            if not apart:
+                continue
+            volume = self.options[lv][assignment[lv]].volume
+            for other in self._joins:
+                f = self.edges[other]
+                if (other == lv or self.options[other][assignment[other]].type == "fixed"
+                        or not {e.a, e.b} & {f.a, f.b}):
+                    continue
+                for i, o in enumerate(self.options[other]):
+                    if o.type == "fixed" and o.volume < volume:
+                        trial = list(assignment)
+                        trial[lv], trial[other] = apart[0], i
+                        yield tuple(trial)
 
 
 #: :func:`_same_column`: footprints within this fraction, tops within this fraction of

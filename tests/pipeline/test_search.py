@@ -667,3 +667,55 @@ def test_no_leg_is_hallucinated_where_a_part_already_stands_at_the_corner():
     np.testing.assert_allclose(out.cuboid(added[0]).center[:2], [-0.55, 0.25], atol=1e-9)
     with_stub = Arrangement((top, *legs, stub), (ground(),))
     assert hallucinate(with_stub, []) == (with_stub, [])  # ... with it, nothing is
+
+
+def test_improve_moves_a_join_from_a_long_reach_to_a_short_one():
+    # table-1100 of the held-out Table 1: a leg seen only in its lower part was joined to
+    # the object by its neighbour leg growing 62 cm sideways to it, not by its own 23 cm
+    # reach up to the top.  Dropping that join alone splits the table, adding the reach
+    # up alone adds volume: no single-edge move gets there, the two-edge swap does
+    import time
+
+    from pipeline.search import SearchStats, _Group
+
+    def part(cid, center, size):
+        return box(cid, center, size, object="t")
+
+    top = part("top", (0, 0, 0.72), (1.2, 0.6, 0.03))
+    legs = [part("a", (0.55, 0.25, 0.3525), (0.05, 0.05, 0.705)),
+            part("b", (0.55, -0.25, 0.3525), (0.05, 0.05, 0.705)),
+            part("c", (-0.55, 0.25, 0.3525), (0.05, 0.05, 0.705)),
+            part("d", (-0.55, -0.25, 0.2), (0.05, 0.05, 0.4))]  # seen up to 0.4 m
+    arr = Arrangement((top, *legs), (ground(),))
+    edges = candidate_edges(arr)
+    group = _Group(arr, list(range(len(arr.cuboids))), edges, 0.7, None, SearchStats())
+    names = [_edge_name_of(arr, e) for e in group.edges]
+    kinds = [[(o.type, tuple(arr.cuboids[x.box].id for x in o.extensions))
+              for o in opts] for opts in group.options]
+
+    def pick(want):  # the option of each edge: fixed where asked (by who grows), else
+        out = []     # touch (with no growth) for a pair already touching, or none
+        for name, opts in zip(names, kinds):
+            grow = want.get(name)
+            if grow is not None:
+                out.append(opts.index(("fixed", grow)))
+            else:
+                out.append(next(i for i, o in enumerate(opts) if o[0] != "fixed" and not o[1]))
+        return tuple(out)
+
+    base = {("a", "top"): (), ("b", "top"): (), ("c", "top"): ()}  # legs on the floor
+    sideways = pick({**base, ("c", "d"): ("c",)})  # c grows 45 cm to d
+    upwards = pick({**base, ("d", "top"): ("d",)})  # d grows 30 cm up to the top
+    for a in (sideways, upwards):
+        assert group.evaluate(a, quick=False)[0]
+    assert group.cost(upwards) < group.cost(sideways)
+    assert group.pieces(sideways) == group.pieces(upwards) == 0
+    deadline = time.perf_counter() + 10
+    assert upwards in set(group._join_swaps(sideways))
+    assert group.improve(sideways, deadline) == upwards
+
+
+def _edge_name_of(arr, e):
+    from pipeline.search import _edge_name
+
+    return tuple(sorted(_edge_name(arr, e)))
