@@ -257,15 +257,23 @@ def hidden_connectors(arr: Arrangement, views: list[DepthView], margin: float = 
 EDGE_STEP = 0.01
 #: ... by at most this fraction of its extent there.
 EDGE_MAX_REL = 0.5
+#: ... and where no step is, a top whose strip just past that end lies behind another
+#: object (from the first view) for at least this fraction of it may go on unseen.
+EDGE_HIDDEN_MIN = 0.25
+#: (what :func:`_grown_to_seen_edge` returns then)
+UNBOUNDED = object()
 
 
 def _grown_to_seen_edge(arr: Arrangement, top: Cuboid, axis: int, side: int,
-                        views: list[DepthView], margin: float) -> Cuboid | None:
+                        views: list[DepthView], margin: float):
     """``top`` grown along ``axis`` towards ``side`` up to where a view saw the space
     beyond it empty (the far edge of a table whose far strip the sensor lost to noise or
-    to what stands on it), or None: when the first step is already seen empty, when no
-    step within :data:`EDGE_MAX_REL` of its extent is (nothing says where the edge is),
-    or when the growth would enter another box."""
+    to what stands on it), or None: when the first step is already seen empty, when the
+    growth would enter another box, or when no step within :data:`EDGE_MAX_REL` of its
+    extent is (nothing says where the edge is).  In that last case :data:`UNBOUNDED`
+    when another object hides at least :data:`EDGE_HIDDEN_MIN` of the strip just past
+    the edge from the first view (the top may go on behind it, as a chair's seat
+    behind the boxes in front of it)."""
     if not views:
         return None
     u = top.rotation[:, axis] * (1.0 if side else -1.0)
@@ -285,13 +293,29 @@ def _grown_to_seen_edge(arr: Arrangement, top: Cuboid, axis: int, side: int,
             size[axis] += base
             grown = top.with_(center=top.center + u * base / 2, size=size)
             return grown if _free(others, grown) else None
-    return None
+    # nothing seen past the edge: a top hidden there by another object may go on (its
+    # legs copied about its centre would come short); one hidden by its own parts not
+    size = top.size.copy()
+    size[axis] = EDGE_STEP
+    slab = top.with_(center=top.center + u * (float(top.size[axis]) / 2 + EDGE_STEP / 2),
+                     size=size)
+    from .imagine import in_shadow
+
+    eye = np.asarray(views[0].T_world_cam, float)[:3, 3]
+    pts = _box_samples(slab)
+    hidden = np.zeros(len(pts), bool)
+    for c in others.cuboids:
+        if c.object != top.object:
+            hidden |= in_shadow(pts, eye, c)
+    return UNBOUNDED if hidden.mean() >= EDGE_HIDDEN_MIN else None
 
 
 def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                 ) -> tuple[Arrangement, list[str]]:
     """Add mirrored legs where two or three are seen, and the mirror image of a top's one
-    support under one end; returns (arrangement, new ids)."""
+    support under one end; returns (arrangement, new ids).  No legs are copied about a
+    top whose far end may go on behind another object (:func:`_grown_to_seen_edge`):
+    where they would stand is not known."""
     by_object: dict[str, list[int]] = {}
     for k, c in enumerate(arr.cuboids):
         if c.object is not None:
@@ -330,6 +354,7 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
         quads = [(int(np.sign(x)), int(np.sign(y))) for x, y in local[:, :2]]
         if len(set(quads)) != len(quads) or any(0 in q for q in quads):
             continue
+        unbounded = False
         if len(legs) == 2 and up == 2:
             # both legs seen at one end: the top's other end may be short of the truth
             # (its far strip lost), and legs copied about its centre would come short by
@@ -338,11 +363,15 @@ def hallucinate(arr: Arrangement, views: list[DepthView], margin: float = 0.0
                 if quads[0][a] == quads[1][a]:
                     grown = _grown_to_seen_edge(arr.with_(cuboids=arr.cuboids + tuple(added)),
                                                 top, a, int(quads[0][a] < 0), views, margin)
-                    if grown is not None:
+                    if grown is UNBOUNDED:
+                        unbounded = True
+                    elif grown is not None:
                         arr = arr.with_(cuboids=tuple(grown if c.id == top.id else c
                                                       for c in arr.cuboids))
                         local = local - (top.rotation.T @ (grown.center - top.center))[None]
                         top = grown
+        if unbounded:
+            continue
         # a quadrant where some other part of the object stands below the top (a leg
         # seen only at its foot, too short to pass for a leg) has its leg
         held = set()

@@ -1256,6 +1256,38 @@ def test_a_top_seen_short_at_the_end_of_its_hidden_legs_grows_to_its_seen_edge()
     np.testing.assert_allclose(got, [(-0.47, -0.3), (-0.47, 0.3)], atol=1e-9)
 
 
+def test_no_legs_are_copied_about_a_top_whose_far_end_another_object_hides():
+    # room-1003 of Table 1: boxes in front of a chair hid the front half of its seat;
+    # with nothing seen past the seat's short edge, the two hidden legs copied about
+    # its centre stood 20 cm inside the true ones (four false contacts).  A top whose
+    # strip past that end lies behind another object may go on: no legs are copied.
+    # The same crate standing aside hides nothing: the top grows to its seen edge and
+    # the legs are copied
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.extend import DepthView
+    from pipeline.symmetry import hallucinate
+
+    true_top = box("top", (0, 0, 0.715), (1.2, 0.7, 0.03), object="t")
+    legs = [box(f"leg{k}", (sx * 0.55, sy * 0.3, 0.35), (0.05, 0.05, 0.7), object="t")
+            for k, (sx, sy) in enumerate([(1, -1), (1, 1), (-1, -1), (-1, 1)])]
+    top = _observed(box("top", (0.04, 0, 0.715), (1.12, 0.7, 0.03), object="t"))
+    seen = [_observed(leg) for leg in legs[:2]]
+    intr = Intrinsics.kinect_v1()
+    T = look_at((2.6, 0.4, 1.9), (0.0, 0.0, 0.5))
+    for crate_y, copied in ((0.0, 0), (2.0, 2)):
+        crate = _observed(box("crate", (-0.3, crate_y, 0.73 + 0.25), (0.3, 1.0, 0.5),
+                              object="crate"))
+        views = [DepthView(_depth_of_boxes([true_top, *legs, crate], T, intr, far=8.0),
+                           intr, T)]
+        arr = Arrangement((top, *seen, crate), (ground(),))
+        out, new = hallucinate(arr, views)
+        assert len(new) == copied, crate_y
+        if not copied:
+            assert out == arr
+        else:
+            assert float(out.cuboid("top").corners()[:, 0].min()) <= -0.6
+
+
 def test_a_top_whose_far_end_nobody_saw_past_keeps_its_fitted_size():
     from pipeline.camera import Intrinsics
     from pipeline.extend import DepthView
