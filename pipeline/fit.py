@@ -114,11 +114,47 @@ def yaw_rotation(a: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None) -> np.ndarray:
+#: An object whose points come this close to a wall (1st percentile of their distances
+#: to its plane, metres: a wall shelf's board seen at 5 m ends a few centimetres off it)
+#: is turned square to that wall when that frame explains its surface normals within
+#: :data:`WALL_SHARE_MARGIN` (of :func:`aligned_share`) as well as its own.
+WALL_NEAR = 0.1
+WALL_SHARE_MARGIN = 0.05
+
+
+def wall_yaw(points: np.ndarray, walls, near: float = WALL_NEAR) -> float | None:
+    """Yaw (radians, in [0, pi/2)) of the nearest upright wall in ``walls`` (supports)
+    that ``points (n, 3)`` come within ``near`` of, or None."""
+    best = None
+    for w in walls:
+        n = np.asarray(w.normal, float)
+        if abs(n[2]) > 0.2 or not len(points):
+            continue
+        gap = float(np.percentile((points - w.point) @ n, 1.0))
+        if gap < near and (best is None or gap < best[0]):
+            best = (gap, float(np.arctan2(n[1], n[0]) % (np.pi / 2)))
+    return None if best is None else best[1]
+
+
+def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
+                     walls=()) -> np.ndarray:
     """The frame of an upright object: yaw from vertical-face normals when they agree
-    (:func:`normal_yaw`), else the minimum-area rectangle (:func:`ground_rotation`)."""
-    a = normal_yaw(normals) if normals is not None and len(normals) else None
-    return ground_rotation(points) if a is None else yaw_rotation(a)
+    (:func:`normal_yaw`), else the minimum-area rectangle (:func:`ground_rotation`).
+
+    With ``walls`` (supports), an object that reaches a wall (:func:`wall_yaw`) stands
+    square to it unless its normals clearly say otherwise: at 4-5 m the sensor's depth
+    steps put ridges across a board that face the camera, and a wall shelf's normals
+    then vote for the viewing direction.
+    """
+    has_normals = normals is not None and len(normals)
+    a = normal_yaw(normals) if has_normals else None
+    R = ground_rotation(points) if a is None else yaw_rotation(a)
+    w = wall_yaw(points, walls) if has_normals and len(walls) else None
+    if w is not None:
+        Rw = yaw_rotation(w)
+        if aligned_share(normals, Rw) >= aligned_share(normals, R) - WALL_SHARE_MARGIN:
+            return Rw
+    return R
 
 
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,

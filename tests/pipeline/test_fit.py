@@ -24,8 +24,9 @@ from pipeline.fit import (
     slabs,
     slant_frame,
     upright_rotation,
+    wall_yaw,
 )
-from pipeline.model import rotation_about_axis, rotation_about_z
+from pipeline.model import Support, rotation_about_axis, rotation_about_z
 
 
 def sample_box_surface(rng, c, R, s, n=12000):
@@ -260,3 +261,39 @@ def test_a_tilted_box_keeps_its_slant_frame_and_a_small_noisy_box_stays_upright(
     tilted = rotation_about_axis([1.0, 0.0, 0.0], np.radians(25)) @ rotation_about_z(0.5)
     up = aligned_share(normals, upright_rotation(pts, normals))
     assert up > 0.5 and up >= aligned_share(normals, tilted) + SLANT_MARGIN
+
+
+def _yaw_deg(R):
+    return float(np.degrees(np.arctan2(R[1, 0], R[0, 0])) % 90.0)
+
+
+def test_a_hanging_board_near_a_wall_is_square_to_it_unless_its_faces_say_otherwise():
+    # a board along the wall y = 0 (the frame of yaw 0).  Its normals, as the sensor's
+    # depth steps leave them at 4-5 m: 88 % up, 12 % horizontal, spread evenly over
+    # 67 +- 25 degrees (coherent enough for normal_yaw, which says 67; only 3 % more of
+    # all normals lie near its axes than near the wall's)
+    rng = np.random.default_rng(5)
+    pts = np.column_stack([rng.uniform(0, 0.5, 1000), rng.uniform(0.02, 0.22, 1000),
+                           np.full(1000, 1.2)])
+    phi = np.radians(np.linspace(42.0, 92.0, 120))
+    normals = np.vstack([np.tile([0.0, 0.0, 1.0], (880, 1)),
+                         np.column_stack([np.cos(phi), np.sin(phi), np.zeros(120)])])
+    assert np.degrees(normal_yaw(normals)) == pytest.approx(67.0, abs=0.5)
+    wall = Support("wall:1", (2.0, 0.0, 0.0), (0.0, 1.0, 0.0))
+    assert wall_yaw(pts, [wall]) == pytest.approx(0.0)
+    assert _yaw_deg(upright_rotation(pts, normals)) == pytest.approx(67.0, abs=0.5)
+    assert _yaw_deg(upright_rotation(pts, normals, [wall])) == pytest.approx(0.0, abs=1e-9)
+    # 50 cm from the wall it keeps its own frame
+    away = pts + [0.0, 0.5, 0.0]
+    assert wall_yaw(away, [wall]) is None
+    assert _yaw_deg(upright_rotation(away, normals, [wall])) == pytest.approx(67.0, abs=0.5)
+    # a crate turned 30 degrees against the wall, its side faces seen crisply, stays turned
+    crisp = np.vstack([np.tile([0.0, 0.0, 1.0], (600, 1)),
+                       np.tile([np.cos(np.radians(30)), np.sin(np.radians(30)), 0.0], (250, 1)),
+                       np.tile([-np.sin(np.radians(30)), np.cos(np.radians(30)), 0.0], (150, 1))])
+    assert _yaw_deg(upright_rotation(pts, crisp, [wall])) == pytest.approx(30.0, abs=1e-6)
+    # a wall turned 120 degrees gives yaw 30 (modulo 90); a tilted plane is no wall
+    turned = Support("wall:2", (0.0, 0.0, 0.0), (np.cos(np.radians(120)), np.sin(np.radians(120)), 0))
+    near = np.array([[0.01 * np.cos(np.radians(120)), 0.01 * np.sin(np.radians(120)), 1.0]])
+    assert np.degrees(wall_yaw(near, [turned])) == pytest.approx(30.0)
+    assert wall_yaw(near, [Support("wall:3", (0, 0, 0), (0.0, 0.6, 0.8))]) is None
