@@ -81,6 +81,53 @@ def test_wall_shelf_must_be_fixed_to_the_wall():
     assert res.arrangement.cuboid("board").size[0] == pytest.approx(0.33)  # grown to the wall
 
 
+def test_a_bracket_is_not_grown_down_a_wall_it_was_seen_in_front_of_at_4_m():
+    # a wall shelf's bracket 9 cm deep, seen from 4-5 m with Kinect noise (about 4 cm
+    # there).  Grown to the floor it stands 3-12 cm in front of the wall the camera saw:
+    # each sample alone is within the noise of the nearest reading around it, but their
+    # median is not.  Behind a crate that hides the column the growth stays possible.
+    from pipeline.extend import (
+        FREE_FRACTION_MAX,
+        depth_noise,
+        seen_in_front,
+        slab_samples,
+        visible_free_fraction,
+    )
+    from tests.pipeline.test_imagine import _depth_of_boxes
+
+    wall = Support("wall:0", (0, 0, 0), (1, 0, 0))
+    board = box("board", (0.13, 0, 1.2), (0.2, 0.5, 0.02), object="shelf")
+    bracket = box("bracket", (0.075, 0.2, 1.13), (0.09, 0.05, 0.12), object="shelf")
+    arr = Arrangement((board, bracket), (ground(), wall))
+    intr = Intrinsics.kinect_v1()
+    eye = np.array([3.5, -2.5, 2.2])
+    T = look_at(eye, [0.0, 0.0, 1.0])
+    wall_box = box("w", (-0.05, 0, 1.5), (0.1, 8, 3))
+    crate = box("crate", eye + 0.5 * (np.array([0.075, 0.2, 0.55]) - eye), (0.5, 0.5, 0.9))
+    rng = np.random.default_rng(0)
+
+    def view(boxes):
+        d = _depth_of_boxes(boxes, T, intr, far=10.0)
+        return DepthView(np.where(d > 0, d + rng.normal(size=d.shape) * depth_noise(d), 0.0),
+                         intr, T)
+
+    seen, hidden = view([board, bracket, wall_box]), view([board, bracket, wall_box, crate])
+    down = next(o for e in candidate_edges(arr) for o in e.options
+                if e.b == "ground" and o.extensions).extensions[0]
+    assert arr.cuboids[down.box].id == "bracket" and down.length == pytest.approx(1.07)
+    pts = slab_samples(arr, down)
+    assert visible_free_fraction(pts, [seen]) <= FREE_FRACTION_MAX  # each sample passes
+    assert seen_in_front(pts, [seen])
+    assert not seen_in_front(pts, [hidden])
+    edges, rejected = prune_by_visibility(arr, candidate_edges(arr), [seen], margin=0.0)
+    assert rejected == 2  # touch and fixed on the floor
+    res = search(arr, edges, budget=5)
+    assert res.stable and res.n_fixed == 1
+    assert _types(res.arrangement) == {("board", "bracket"): "fixed",
+                                       ("bracket", "wall:0"): "fixed"}
+    assert prune_by_visibility(arr, candidate_edges(arr), [hidden], margin=0.0)[1] == 0
+
+
 def test_missed_support_returns_best_effort_marked_unstable():
     arr = Arrangement((box("a", (0, 0, 0.5), (1, 1, 1)), box("sky", (5, 5, 3), (0.3, 0.3, 0.3))),
                       (ground(),))
