@@ -382,7 +382,31 @@ class _Group:
                 if not cs.penetrations:
                     out = trial
                     break
+            else:
+                out = self._share_extension(out, k, fixed)
         return tuple(out)
+
+    def _share_extension(self, out: list[int], k: int, fixed: list[int]) -> list[int]:
+        """Edge ``k``'s fixed options (``fixed``) all drive a box into another given the
+        extensions taken so far: try each with an edge already fused that could instead
+        take an option pushing out the same face (one extension explaining both
+        contacts: a deck grown down onto two pillars, where the first pillar grown up to
+        the deck left no room for the deck to come down onto the second)."""
+        for i in fixed:
+            faces = {(x.box, x.axis, x.side) for x in self.options[k][i].extensions}
+            for m, opts in enumerate(self.options):
+                if m == k or not opts[out[m]].extensions:
+                    continue
+                for j, o in enumerate(opts):
+                    if (j == out[m] or o.type != "fixed"
+                            or not faces & {(x.box, x.axis, x.side) for x in o.extensions}):
+                        continue
+                    trial = list(out)
+                    trial[k], trial[m] = i, j
+                    _, cs = self.geometry(tuple(trial))
+                    if not cs.penetrations:
+                        return trial
+        return out
 
     def run(self, deadline: float) -> tuple[tuple[int, ...], bool, object]:
         root = self.root()

@@ -766,3 +766,28 @@ def _edge_name_of(arr, e):
     from pipeline.search import _edge_name
 
     return tuple(sorted(_edge_name(arr, e)))
+
+
+def test_a_deck_short_of_two_pillars_comes_down_onto_both(monkeypatch):
+    # a bridge: deck A rests on pillars P2 and P3; deck B, fitted 2.5 cm high, spans P1
+    # and P2.  P2 cannot grow up (A rests on it), so B must come down; growing P1 up to B
+    # first (the smaller extension) leaves B no room to come down onto P2, and the large
+    # group's greedy search then stretched P1 a metre sideways under B instead.  The
+    # root takes the one extension that explains both contacts.
+    import pipeline.search as search_module
+
+    monkeypatch.setattr(search_module, "EXACT_MAX_EDGES", 0)  # as in a large group
+    h = 0.68
+    pillars = [box(f"P{k + 1}", (float(k), 0, h / 2), (0.24, 0.28, h)) for k in range(3)]
+    A = box("A", (1.565, 0, h + 0.035), (1.11, 0.24, 0.07))
+    B = box("B", (0.435, 0, h + 0.06), (1.11, 0.24, 0.07))
+    arr = Arrangement((*pillars, A, B), (ground(),))
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 0
+    assert _types(res.arrangement) == {
+        ("A", "P2"): "touch", ("A", "P3"): "touch", ("B", "P1"): "touch", ("B", "P2"): "touch",
+        ("P1", "ground"): "touch", ("P2", "ground"): "touch", ("P3", "ground"): "touch"}
+    out = res.arrangement.cuboid("B")
+    assert out.center[2] - out.size[2] / 2 == pytest.approx(h)
+    for k in range(3):
+        np.testing.assert_allclose(res.arrangement.cuboid(f"P{k + 1}").size, [0.24, 0.28, h])
