@@ -49,15 +49,6 @@ def contact_segments(arr) -> list[tuple[np.ndarray, np.ndarray, str]]:
     return out
 
 
-def solve(initial, scan, args, progress=None):
-    """Run :func:`pipeline.imagine.imagine` on the initial arrangement of a loaded scan."""
-    from pipeline.imagine import imagine, views_from_scan
-
-    views = views_from_scan(scan, initial)
-    return imagine(initial, views, budget=args.budget, mu=args.mu,
-                   symmetry=not args.no_symmetry, progress=progress)
-
-
 def write_full_outputs(out: Path, scan, initial, result, report0: dict, engines: dict | None,
                        command: str, seed: int) -> None:
     from pipeline import atomic
@@ -117,36 +108,32 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
         ver = version("unseen")
     except Exception:  # noqa: BLE001
         ver = "unknown"
-    st = rep["search"]
+    st = rep.search
     lines = ["# unseen run", "", f"- command: `{command}`", f"- seed: {seed}", f"- unseen {ver}",
              f"- input: {report0.get('segmentation', '')} segmentation, "
              f"{report0['counts']['objects']} objects, {report0['counts']['cuboids']} initial cuboids",
              f"- result: {len(final.cuboids)} cuboids, {len(final.contacts)} contacts "
              f"({sum(c.type == 'fixed' for c in final.contacts)} fixed), "
-             f"**{'stable' if rep['stable'] else 'UNSTABLE'}** (E = {rep['energy']:.3g})", ""]
-    if rep["unstable"]:
+             f"**{'stable' if rep.stable else 'UNSTABLE'}** (E = {rep.energy:.3g})", ""]
+    if rep.unstable:
         lines += [f"Even with every candidate contact fixed, these boxes cannot be held: "
-                  f"{', '.join(rep['unstable'])} (a support was probably not seen); "
+                  f"{', '.join(rep.unstable)} (a support was probably not seen); "
                   "the result is the best effort.", ""]
     lines += ["## Timings (seconds)", "", "| step | seconds |", "|---|---|"]
     lines += [f"| initial: {k} | {v:.3f} |" for k, v in report0["timings"].items() if k != "total"]
-    lines += [f"| imagine: {k} | {v:.3f} |" for k, v in rep["timings"].items()]
+    lines += [f"| imagine: {k} | {v:.3f} |" for k, v in rep.timings.items()]
     lines += ["", "## Search", "", "| statistic | value |", "|---|---|"]
     lines += [f"| {k} | {v} |" for k, v in st.items()]
-    lines += [f"| candidate edges (after pruning) | {rep['candidate_edges']} |",
-              f"| candidate options (before pruning) | {rep['candidate_options']} |",
-              f"| rejected: seen as empty | {rep['rejected_by_visibility']} |",
-              f"| visibility check | {rep['visibility']} |",
-              f"| overlaps repaired | {rep['repaired_overlaps']} |",
-              f"| hallucinated parts | {', '.join(rep['hallucinated']) or 'none'} |",
-              f"| deepened (seen face-on) | {', '.join(rep.get('deepened', [])) or 'none'} |",
-              f"| grown behind the part that hides them | "
-              f"{', '.join(rep.get('reached_occluders', [])) or 'none'} |",
-              f"| fixed contacts chosen (beyond same-object fusions) | {rep['fixed_chosen']} |",
-              f"| added volume (m^3) | {rep['added_volume_m3']:.4g} |",
-              f"| largest contact gap closed (mm) | {1000 * rep.get('gap_closed_m', 0.0):.3g} |"]
-    if rep.get("refine"):
-        r = rep["refine"]
+    lines += [f"| candidate edges (after pruning) | {rep.candidate_edges} |",
+              f"| candidate options (before pruning) | {rep.candidate_options} |",
+              f"| rejected: seen as empty | {rep.rejected_by_visibility} |",
+              f"| visibility check | {rep.visibility} |",
+              f"| parts the priors added | {', '.join(rep.hallucinated) or 'none'} |",
+              f"| fixed contacts chosen (beyond same-object fusions) | {rep.fixed_chosen} |",
+              f"| added volume (m^3) | {rep.added_volume_m3:.4g} |",
+              f"| largest contact gap closed (mm) | {1000 * rep.gap_closed_m:.3g} |"]
+    if rep.refine:
+        r = rep.refine
         lines += [f"| refinement | E {r['energy_before']:.3g} -> {r['energy_after']:.3g} in "
                   f"{r['steps']} steps |"]
     if engines:
@@ -155,6 +142,11 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
             moving = [b["id"] for b in res.get("bodies", []) if not b.get("stable", True)]
             lines.append(f"| {name} | {'stable' if res['stable'] else 'UNSTABLE'} | "
                          f"{', '.join(moving) or '-'} |")
+    lines += ["", "## Priors", "", "What each prior proposed (see README, 'The method'); "
+              f"switched off: {', '.join(rep.disabled) or 'none'}.", "",
+              "| prior | boxes | why | kept |", "|---|---|---|---|"]
+    lines += [f"| {e.prior} | {', '.join(e.boxes)} | {e.reason} | "
+              f"{'yes' if e.accepted else 'no: ' + e.why_not} |" for e in rep.edits]
     lines += ["", "## Cuboids", "", "| id | object | size (m) | observed size (m) | note |",
               "|---|---|---|---|---|"]
     for c in final.cuboids:
@@ -176,7 +168,7 @@ def check_engines(arr, mu: float) -> dict:
     return out
 
 
-def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
+def run_full(args: argparse.Namespace) -> tuple[int, str]:
     """Run and write everything; returns (exit code, one summary line for the terminal)."""
     from pipeline.progress import Progress
 
@@ -185,12 +177,16 @@ def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
         raise InputError(f"--out {out}: exists and is not a folder")
     if not args.budget > 0:
         raise InputError(f"--budget: must be a positive number of seconds, got {args.budget}")
+    from eval.commands.run import config_from_args
+    from pipeline.run import run_scan
+
     t0 = time.perf_counter()
     with Progress(None, "unseen run") as bar:
-        scan, initial, report0 = run_initial(args, progress=lambda name: bar.update(note=name))
-        bar.update(note="search")
-        result = solve(initial, scan, args,
-                       progress=lambda done, total: bar.update(note=f"group {done}/{total}"))
+        result = run_scan(args.input, config_from_args(args),
+                          progress=lambda name: bar.update(note=name),
+                          search_progress=lambda done, total: bar.update(
+                              note=f"group {done}/{total}"))
+        scan, initial, report0 = result.scan, result.initial, result.initial_report
         engines = None
         if args.check_engines:
             bar.update(note="engines")
@@ -200,11 +196,11 @@ def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
     write_full_outputs(out, scan, initial, result, report0, engines, command, args.seed)
     final = result.arrangement
     n_fixed = sum(c.type == "fixed" for c in final.contacts)
-    verdict = "stable" if result.report["stable"] else "UNSTABLE (best effort)"
+    verdict = "stable" if result.report.stable else "UNSTABLE (best effort)"
     line = (f"{len(final.cuboids)} cuboids, {len(final.contacts)} contacts ({n_fixed} fixed), "
             f"{verdict}, {time.perf_counter() - t0:.2f} s -> {out}")
     if engines:
         line += "; engines: " + ", ".join(
             f"{k} {'stable' if v['stable'] else 'UNSTABLE'}" for k, v in engines.items())
-    ok = result.report["stable"] and (not engines or all(v["stable"] for v in engines.values()))
+    ok = result.report.stable and (not engines or all(v["stable"] for v in engines.values()))
     return (0 if ok else 1), line

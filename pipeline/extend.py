@@ -25,8 +25,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Intrinsics, invert, project, transform
 from .contacts import candidate_pairs, pair_tolerance, sat_separation
+from .evidence import (
+    FREE_FRACTION_MAX,
+    DepthView,
+    depth_noise,
+    seen_in_front,
+    slab_samples,
+    visible_free_fraction,
+    visible_free_mask,
+)
 from .model import Arrangement, Cuboid, box_corners, is_support_id
 
 #: An extension longer than this many times the scene's median box edge is not proposed.
@@ -39,8 +47,6 @@ FACING_COS = 0.5
 #: A contact is a resting one (box on box) when its normal is within about 25 degrees of
 #: vertical: only then is the lower box offered to grow under an overhanging upper box.
 RESTING_COS = 0.9
-#: Reject an extension when more than this fraction of its samples were seen through.
-FREE_FRACTION_MAX = 0.1
 
 
 @dataclass(frozen=True)
@@ -334,124 +340,6 @@ def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], 
         if any(o.type != "none" for o in keep):
             out.append(Edge(e.a, e.b, tuple(keep), e.same_object, e.touching))
     return out, rejected
-
-
-# ----------------------------------------------------------------------- visibility
-@dataclass(frozen=True)
-class DepthView:
-    """One depth image with its camera, in the arrangement's world frame."""
-
-    depth: np.ndarray  # (H, W) metres, 0 = no reading
-    intrinsics: Intrinsics
-    T_world_cam: np.ndarray
-
-
-def depth_noise(z: np.ndarray) -> np.ndarray:
-    """Kinect v1 axial noise std (Nguyen et al. 2012, frontal): 0.0012 + 0.0019 (z - 0.4)^2."""
-    return 0.0012 + 0.0019 * (np.asarray(z) - 0.4) ** 2
-
-
-def slab_samples(arr: Arrangement, ext: Extension, n: int = 5) -> np.ndarray:
-    """(m, 3) world points filling the slab that ``ext`` adds, kept off its borders."""
-    c = arr.cuboids[ext.box]
-    half = c.size / 2
-    ts = (np.arange(n) + 0.5) / n
-    grids = []
-    for k in range(3):
-        if k == ext.axis:
-            sgn = 1.0 if ext.side else -1.0
-            grids.append(sgn * (half[k] + ext.length * (0.1 + 0.8 * ts)))
-        else:
-            grids.append((ts * 2 - 1) * half[k] * 0.85)
-    g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)
-    return c.center + g @ c.rotation.T
-
-
-def visible_free_fraction(points: np.ndarray, views: list[DepthView],
-                          margin: float = 0.0) -> float:
-    """Fraction of ``points`` that some view saw as empty (clearly in front of its depth)."""
-    if not len(points) or not views:
-        return 0.0
-    return float(visible_free_mask(points, views, margin).mean())
-
-
-def visible_free_mask(points: np.ndarray, views: list[DepthView],
-                      margin: float = 0.0) -> np.ndarray:
-    """Per point of ``points``: whether some view saw it as empty (clearly in front of
-    its depth)."""
-    seen = np.zeros(len(points), bool)
-    for view in views:
-        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
-        H, W = view.depth.shape
-        u = np.round(uv[:, 0])
-        v = np.round(uv[:, 1])
-        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-        iu = np.where(inside, u, 0).astype(int)
-        iv = np.where(inside, v, 0).astype(int)
-        d = _nearest_depth(view.depth)[iv, iu]
-        tol = 3 * depth_noise(d) + margin
-        seen |= inside & (d > 0) & (z < d - tol)
-    return seen
-
-
-#: Added volume lies, taken as a whole, in front of what the sensor saw when the median
-#: of its samples' gaps to the depth (nearest reading around each pixel) exceeds this many
-#: noise standard deviations and :data:`SEEN_IN_FRONT_MIN_GAP` metres (at close range
-#: the fit of a box's faces, not the sensor, limits what a centimetre means), over at
-#: least :data:`SEEN_IN_FRONT_MIN` samples with a reading.
-SEEN_IN_FRONT_SIGMAS = 1.0
-SEEN_IN_FRONT_MIN_GAP = 0.03
-SEEN_IN_FRONT_MIN = 20
-
-
-def seen_in_front(points: np.ndarray, views: list[DepthView]) -> bool:
-    """Whether some view saw past ``points (n, 3)`` as a whole.
-
-    The per-sample test (:func:`visible_free_mask`) asks each sample to lie three noise
-    deviations in front of the nearest reading around its pixel; at 5 m that is 20 cm,
-    and a bracket 9 cm deep grown down a wall 12 cm behind it passes.  The median of
-    many samples' gaps is far less noisy: it must lie :data:`SEEN_IN_FRONT_SIGMAS`
-    deviations, and at least :data:`SEEN_IN_FRONT_MIN_GAP`, in front.
-    """
-    for view in views:
-        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
-        H, W = view.depth.shape
-        u, v = np.round(uv[:, 0]), np.round(uv[:, 1])
-        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-        d = _nearest_depth(view.depth)[v[inside].astype(int), u[inside].astype(int)]
-        ok = d > 0
-        if ok.sum() < SEEN_IN_FRONT_MIN:
-            continue
-        gap = float(np.median(d[ok] - z[inside][ok]))
-        if gap > max(SEEN_IN_FRONT_SIGMAS * float(np.median(depth_noise(d[ok]))),
-                     SEEN_IN_FRONT_MIN_GAP):
-            return True
-    return False
-
-
-_NEAREST_CACHE: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-
-
-def _nearest_depth(depth: np.ndarray) -> np.ndarray:
-    """The nearest reading among each pixel and its 8 neighbours (0 where none has one).
-
-    A point is seen empty only when the sensor saw past it at its pixel and all around:
-    a part thinner than a pixel (a shelf's side panel at 4 m) shares its pixels with the
-    floor behind it, and a single pixel's reading would call the space under it empty.
-    """
-    key = id(depth)
-    hit = _NEAREST_CACHE.get(key)
-    if hit is not None and hit[0] is depth:
-        return hit[1]
-    import cv2
-
-    big = np.where(depth > 0, depth, np.inf).astype(np.float32)
-    near = cv2.erode(big, np.ones((3, 3), np.uint8), borderType=cv2.BORDER_REPLICATE)
-    out = np.where(np.isfinite(near), near, 0.0).astype(float)
-    if len(_NEAREST_CACHE) > 8:
-        _NEAREST_CACHE.clear()
-    _NEAREST_CACHE[key] = (depth, out)
-    return out
 
 
 def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],

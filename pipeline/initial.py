@@ -333,5 +333,5 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
               "segmentation": ("instance" if inst is not None and np.any(inst > 0) else
                                "scribbles" if scribble_labels is not None else "cluster"),
               "cell": cell, "plane_threshold": frame.threshold, "objects": names,
-              "labels": labels, "world": world}
+              "labels": labels, "world": world, "pose": np.asarray(T_world_cam, float)}
     return arr, report

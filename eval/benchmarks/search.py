@@ -57,6 +57,7 @@ def rooms(n_cuboids: int, seed: int):
 
 def run(quick: bool) -> list[BenchTable]:
     from pipeline.imagine import imagine
+    from pipeline.priors import ImagineConfig
 
     sizes = (30, 56) if quick else (30, 56, 200)
     n_scenes = 2 if quick else 5
@@ -67,13 +68,13 @@ def run(quick: bool) -> list[BenchTable]:
             gt = rooms(n, seed=1000 + s)
             init = occluded(gt, np.random.default_rng(s))
             t, c = time.perf_counter(), time.process_time()
-            res = imagine(init, budget=30.0)
+            res = imagine(init, None, ImagineConfig(budget=30.0))
             times.append(time.perf_counter() - t)
             cpu.append(time.process_time() - c)
-            search_s.append(res.report["timings"]["search"])
-            stable += int(res.report["stable"])
+            search_s.append(res.report.timings["search"])
+            stable += int(res.report.stable)
             counts.append(len(init.cuboids))
-            fixed.append(res.report["fixed_chosen"])
+            fixed.append(res.report.fixed_chosen)
         med = statistics.median(times)
         rows.append([n, f"{min(counts)}-{max(counts)}", len(times), med, max(times),
                      statistics.median(cpu), statistics.median(search_s),

@@ -27,11 +27,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from eval.commands.run import run_initial
     from eval.metrics import score_arrangement
-    from eval.run_full import check_engines, solve, write_full_outputs
+    from eval.run_full import check_engines, write_full_outputs
     from pipeline.errors import InputError
+    from pipeline.imagine import imagine
+    from pipeline.priors import ImagineConfig
     from pipeline.progress import Progress
+    from pipeline.run import RunConfig, run_scan
     from synth_scenes.scene_dir import make_scene_dir
 
     t0 = time.perf_counter()
@@ -47,14 +49,11 @@ def run(args: argparse.Namespace) -> int:
             raise InputError(f"--family {args.family}: no physically valid scene for seed "
                              f"{args.seed}; try another --seed")
         bar.update(1, "initial cuboids")
-        run_args = argparse.Namespace(
-            input=str(scene_dir), color=None, depth=None, intrinsics=None, depth_format="auto",
-            depth_scale=1000.0, up=None, max_depth=None, instance=None, scribbles=None,
-            segmentation="auto", cell=None, no_edges=False, seed=0, budget=args.budget, mu=0.7,
-            no_symmetry=False, check_engines=True, out=str(result_dir))
-        scan, initial, report0 = run_initial(run_args)
+        config = RunConfig(stage="initial", imagine=ImagineConfig(budget=args.budget))
+        first = run_scan(scene_dir, config)
+        scan, initial, report0 = first.scan, first.initial, first.initial_report
         bar.update(1, "imagining the unseen")
-        result = solve(initial, scan, run_args)
+        result = imagine(initial, first.evidence, config.imagine)
         bar.update(1, "engines")
         engines = check_engines(result.arrangement, 0.7)
         bar.update(1, "writing")
@@ -69,10 +68,10 @@ def run(args: argparse.Namespace) -> int:
           f"{len(made.truth.arrangement.cuboids)} true cuboids, "
           f"{len(made.truth.arrangement.contacts)} true contacts)")
     print(f"result:  {len(initial.cuboids)} initial cuboids -> {len(final.cuboids)} cuboids"
-          f"{' (' + str(len(rep['hallucinated'])) + ' hallucinated)' if rep['hallucinated'] else ''}, "
+          f"{' (' + str(len(rep.hallucinated)) + ' hallucinated)' if rep.hallucinated else ''}, "
           f"{len(final.contacts)} contacts ({n_fixed} fixed), added "
-          f"{rep['added_volume_m3'] * 1000:.1f} litres; search {rep['search']['seconds']:.2f} s")
-    verdicts = {"analytic": bool(rep["stable"])}
+          f"{rep.added_volume_m3 * 1000:.1f} litres; search {rep.search['seconds']:.2f} s")
+    verdicts = {"analytic": bool(rep.stable)}
     verdicts.update({k: bool(v["stable"]) for k, v in engines.items()})
     print("stands:  " + ", ".join(f"{k} {'yes' if v else 'NO'}" for k, v in verdicts.items()))
     if score.initial is not None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import shlex
 import sys
-import time
 from pathlib import Path
 
 from pipeline.errors import InputError
@@ -65,7 +64,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--check-engines", action="store_true",
                    help="settle the result in MuJoCo and PyBullet and report their verdicts")
     p.add_argument("--no-symmetry", action="store_true",
-                   help="do not hallucinate wholly occluded parts (fourth legs) by symmetry")
+                   help="do not hallucinate wholly occluded parts (fourth legs) by symmetry "
+                        "(the same as --disable symmetry)")
+    p.add_argument("--disable", default="", metavar="PRIOR[,PRIOR...]",
+                   help="switch priors off (see README, 'The method'): " + ", ".join(
+                       _prior_names()))
     p.add_argument("--color", help="colour image file (relative to INPUT folder or absolute)")
     p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat)")
     p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
@@ -88,26 +91,37 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (RANSAC)")
 
 
+def _prior_names() -> list[str]:
+    from pipeline.priors import BY_NAME, GROUPS
+
+    return [*BY_NAME, *GROUPS]
+
+
+def config_from_args(args: argparse.Namespace):
+    """The :class:`pipeline.run.RunConfig` of ``unseen run``'s options."""
+    from pipeline.priors import ImagineConfig
+    from pipeline.run import LoadOptions, RunConfig
+
+    disabled = {n for n in str(getattr(args, "disable", "") or "").split(",") if n.strip()}
+    if getattr(args, "no_symmetry", False):
+        disabled.add("symmetry")
+    load = LoadOptions(color=args.color, depth=args.depth, intrinsics=args.intrinsics,
+                       depth_format=args.depth_format, depth_scale=args.depth_scale,
+                       up=args.up, max_depth=args.max_depth, instance=args.instance,
+                       scribbles=args.scribbles)
+    imagine = ImagineConfig(budget=args.budget, mu=args.mu, disabled=frozenset(disabled))
+    return RunConfig(seed=args.seed, segmentation=args.segmentation, cell=args.cell,
+                     edges=not args.no_edges, stage=args.stage, imagine=imagine, load=load)
+
+
 def run_initial(args: argparse.Namespace, progress=None):
     """Load INPUT and run section 4.1: returns (scan_input, arrangement, report dict)."""
-    import numpy as np
+    from dataclasses import replace
 
-    from pipeline.fit import CELL_REL
-    from pipeline.initial import initial_cuboids
-    from pipeline.scan_io import load_scan
+    from pipeline.run import run_scan
 
-    t0 = time.perf_counter()
-    scan = load_scan(args.input, color=args.color, depth=args.depth, intrinsics=args.intrinsics,
-                     depth_format=args.depth_format, depth_scale=args.depth_scale, up=args.up,
-                     max_depth=args.max_depth, instance=args.instance, scribbles=args.scribbles)
-    t_load = time.perf_counter() - t0
-    rng = np.random.default_rng(args.seed)
-    arr, report = initial_cuboids(scan, rng=rng, cell_rel=args.cell or CELL_REL,
-                                  edges=not args.no_edges, segmentation=args.segmentation,
-                                  progress=progress)
-    report["timings"] = {"load": t_load, **report["timings"]}
-    report["timings"]["total"] = float(sum(v for k, v in report["timings"].items() if k != "total"))
-    return scan, arr, report
+    res = run_scan(args.input, replace(config_from_args(args), stage="initial"), progress)
+    return res.scan, res.initial, res.initial_report
 
 
 def write_initial_outputs(out: Path, scan, arr, report: dict, command: str, seed: int) -> None:
@@ -177,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
     if args.stage == "full":
         from eval.run_full import run_full
 
-        code, line = run_full(args, run_initial)
+        code, line = run_full(args)
         print(line)
         return code
     from pipeline.progress import Progress

@@ -8,7 +8,6 @@ seed are byte-identical; timings are the runner's (``timing.json``).
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import tempfile
 from collections.abc import Iterator
@@ -28,14 +27,15 @@ def scene_seed(suite_seed: int, index: int) -> int:
     return SCENE_SEED0 + 100 * int(suite_seed) + int(index)
 
 
-def run_args(scene_dir: str | Path, budget: float = BUDGET) -> argparse.Namespace:
-    """The ``unseen run`` options :func:`eval.commands.run.run_initial` and
-    :func:`eval.run_full.solve` read, at their defaults, for a scene directory."""
-    return argparse.Namespace(
-        input=str(scene_dir), color=None, depth=None, intrinsics=None, depth_format="auto",
-        depth_scale=1000.0, up=None, max_depth=None, instance=None, scribbles=None,
-        segmentation="auto", cell=None, no_edges=False, seed=0, budget=float(budget), mu=0.7,
-        no_symmetry=False, check_engines=False, out=str(scene_dir))
+def run_config(budget: float = BUDGET, config: dict | None = None):
+    """The :class:`pipeline.run.RunConfig` of a suite's scene: ``unseen run``'s defaults,
+    the search ``budget`` and ``config``, JSON-able overrides of the
+    :class:`pipeline.priors.ImagineConfig` (``{"disable": [...], "params": {...}}``)."""
+    from pipeline.priors import ImagineConfig
+    from pipeline.run import RunConfig
+
+    imagine = ImagineConfig.from_dict({"budget": float(budget), **(config or {})})
+    return RunConfig(imagine=imagine)
 
 
 @contextlib.contextmanager
@@ -56,16 +56,25 @@ def make_scene(family: str, seed: int, folder: Path, *, views: int = 1, noise: s
     return made
 
 
-def initial_from_dir(scene_dir: Path, budget: float = BUDGET):
-    """(scan, initial arrangement, run args) of a scene directory (section 4.1)."""
-    from eval.commands.run import run_initial
+def initial_from_dir(scene_dir: Path, budget: float = BUDGET, config: dict | None = None):
+    """(scan, initial arrangement, run config) of a scene directory (section 4.1)."""
+    from dataclasses import replace
 
-    args = run_args(scene_dir, budget)
-    scan, initial, _ = run_initial(args)
-    return scan, initial, args
+    from pipeline.run import run_scan
+
+    cfg = run_config(budget, config)
+    res = run_scan(scene_dir, replace(cfg, stage="initial"))
+    return res.scan, res.initial, cfg
 
 
-def summary_of(result_arr, report: dict) -> dict:
+def run_dir(scene_dir: Path, budget: float = BUDGET, config: dict | None = None):
+    """The whole pipeline on a scene directory: a :class:`pipeline.run.Result`."""
+    from pipeline.run import run_scan
+
+    return run_scan(scene_dir, run_config(budget, config))
+
+
+def summary_of(result_arr, report) -> dict:
     """Counts of a pipeline result: cuboids, contacts, fixed contacts (all, and ``n_glue``:
     those between different objects or with a support), analytic verdict."""
     n_fixed = sum(c.type == "fixed" for c in result_arr.contacts)
@@ -75,8 +84,8 @@ def summary_of(result_arr, report: dict) -> dict:
                  for c in result_arr.contacts)
     return {"n_final": len(result_arr.cuboids), "n_contacts": len(result_arr.contacts),
             "n_fixed": int(n_fixed), "n_glue": int(n_glue),
-            "stable": bool(report.get("stable", False)),
-            "hallucinated": len(report.get("hallucinated", []))}
+            "stable": bool(report.stable),
+            "hallucinated": len(report.hallucinated)}
 
 
 def settle_stands(arr, engine: str = "mujoco") -> bool:
@@ -107,7 +116,8 @@ def missed_at(rec_false_negatives, parts: list[str]) -> int:  # noqa: ANN001
 
 def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                noise: str = "kinect", budget: float = BUDGET, options: dict | None = None,
-               engine: str | None = None, engines: tuple | list | None = None) -> dict:
+               engine: str | None = None, engines: tuple | list | None = None,
+               config: dict | None = None) -> dict:
     """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
 
     Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
@@ -116,7 +126,6 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
     also ``stands`` (the result settled in that engine), with ``engines`` also
     ``stands_in`` (engine -> whether it stands there).
     """
-    from eval.run_full import solve
     from eval.suites._common import score_record
 
     del rng  # the scene is a function of its seed; the pipeline is seeded by run_args
@@ -124,8 +133,8 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
         made = make_scene(family, seed, tmp / "scene", views=views, noise=noise,
                           **(options or {}))
         gt = made.truth.arrangement
-        scan, initial, args = initial_from_dir(made.path, budget)
-        result = solve(initial, scan, args)
+        result = run_dir(made.path, budget, config)
+        initial = result.initial
         unseen = unseen_parts(made.path / "scan", gt)
     from eval.metrics import score_arrangement
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -46,18 +47,21 @@ def density_task(rng: np.random.Generator, family: str, seed: int, factors: tupl
     """All factors and draws of one scene (a :class:`eval.runner.Task` function)."""
     from eval.metrics import listed_graph, match_cuboids
     from eval.suites._common import score_record
-    from eval.suites._scenes import initial_from_dir, make_scene, scratch
-    from pipeline.imagine import imagine, views_from_scan
+    from eval.suites._scenes import make_scene, scratch
+    from eval.suites._scenes import run_config as config_of
+    from pipeline.imagine import imagine
+    from pipeline.run import run_scan
     from pipeline.stability import check_stability
 
+    cfg = config_of()
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene")
         gt = made.truth.arrangement
-        scan, initial, args = initial_from_dir(made.path)
-    views = views_from_scan(scan, initial)
+        first = run_scan(made.path, replace(cfg, stage="initial"))
+        initial = first.initial
 
     def solve(arr):
-        return imagine(arr, views, budget=args.budget, mu=args.mu).arrangement
+        return imagine(arr, first.evidence, cfg.imagine).arrangement
 
     base = solve(initial)
     base_graph = listed_graph(base)

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -110,22 +111,26 @@ def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
                  runs: int, axis: str = "random") -> dict:
     """``runs`` perturbations of one scene's initial cuboids at ``angle`` degrees."""
     from eval.suites._common import score_record
-    from eval.suites._scenes import initial_from_dir, make_scene, scratch
-    from pipeline.imagine import imagine, views_from_scan
+    from eval.suites._scenes import make_scene, scratch
+    from eval.suites._scenes import run_config as config_of
+    from pipeline.imagine import imagine
+    from pipeline.run import run_scan
 
+    cfg = config_of()
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene")
         gt = made.truth.arrangement
-        scan, initial, args = initial_from_dir(made.path)
+        first = run_scan(made.path, replace(cfg, stage="initial"))
+        initial = first.initial
     out_runs, discarded, forced = [], 0, 0
     for _ in range(runs):
         arr, d, f = perturb(initial, rng, angle, axis=axis)
         discarded += d
         forced += int(f)
-        res = imagine(arr, views_from_scan(scan, arr), budget=args.budget, mu=args.mu)
+        res = imagine(arr, first.evidence, cfg.imagine)
         rec = score_record(res.arrangement, gt, initial=arr)
         out_runs.append({k: rec[k] for k in ("initial", "optimized", "mean_iou") if k in rec}
-                        | {"stable": bool(res.report["stable"])})
+                        | {"stable": bool(res.report.stable)})
     return {"family": family, "seed": int(seed), "angle": float(angle), "axis": axis,
             "runs": out_runs,
             "discarded": int(discarded), "forced": forced, "n_initial": len(initial.cuboids),

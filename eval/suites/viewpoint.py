@@ -33,12 +33,11 @@ DISTANCE = 2.2
 def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: float) -> dict:
     """One scene seen from one azimuth (degrees), through the pipeline, scored."""
     from eval.metrics import score_arrangement
-    from eval.run_full import solve
     from eval.suites._common import score_record
     from eval.suites._scenes import (
-        initial_from_dir,
         make_scene,
         missed_at,
+        run_dir,
         scratch,
         summary_of,
         unseen_parts,
@@ -51,8 +50,8 @@ def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: fl
         made = make_scene(family, seed, tmp / "scene", view_ranges=ranges)
         gt = made.truth.arrangement
         hidden = unseen_parts(made.path / "scan", gt)
-        scan, initial, args = initial_from_dir(made.path)
-        result = solve(initial, scan, args)
+        result = run_dir(made.path)
+        initial = result.initial
     s = score_arrangement(result.arrangement, gt, initial=initial)
     fn = [list(e) for e in s.optimized.false_negatives]
     rec = score_record(result.arrangement, gt, initial=initial)

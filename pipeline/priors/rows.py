@@ -1,36 +1,40 @@
-"""Rows of upright boxes on one support: books on a shelf board seen from afar.
+"""Books in a row stand side by side: a row of upright boxes on one support.
 
-Fitted to a few dozen noisy points each, the books of a row overlap along the row by
-centimetres (depth noise at 5 m smears a spine seen obliquely along the row), so no two
-of them can stand side by side: the overlap repair then sets them one in front of the
-other, a zig-zag in which a book touches the side panel and the book two places on while
-its true neighbours float apart.  :func:`resolve_rows` puts such a row back side by side:
-the order along the row is the order of the box centres (the noise smears both ends
-alike), each overlap is split at its middle, and each box's face away from the camera
-goes back as far as the row's farthest back face, through space no view saw empty.
+Evidence: boxes resting on one upright support, their observed centres in the image, and
+the depth views.  Regularity: slabs standing on one board next to each other (books on a
+shelf) stand side by side along it; fitted to a few dozen noisy points each at 5 m, they
+overlap along the row by centimetres and the overlap repair sets them one behind the
+other, a zig-zag in which true neighbours float apart.  A row is the boxes resting on one
+upright support (bottoms within ``rest_gap`` of its top, axes within ``axes_deg`` of
+its own, not parts of its object, ``min_height_rel`` times as tall as wide along it)
+linked by pairs overlapping along the support's long axis by ``overlap`` of the narrower
+while apart across it.  The row is ordered as the image shows it (noise moves a box
+along its ray, which the image does not see; by the fitted centres when the view looks
+along the row within ``along_deg``), each overlap is split at its middle (no box left
+narrower than ``min_width``), and each box's face away from the camera goes back to the
+row's farthest, through space no view saw empty.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from .model import Arrangement, Cuboid, ObservedBox
+from ..boxops import box_samples, is_upright, resting_on, turn_onto, turned_by
+from ..camera import invert, project, transform
+from ..model import Arrangement, Cuboid, ObservedBox
+from .base import Edit, Prior, principle_of
 
-#: Two boxes on one support belong to one row when they overlap along the support's long
-#: axis by at least this fraction of the narrower one while standing one in front of
-#: the other (their extents across the support apart) ...
-ROW_OVERLAP = 0.3
-#: ... their yaws within this many degrees of the support's (a row's boxes are turned
-#: onto its axes) ...
-ROW_AXES_DEG = 15.0
-#: ... and their bottoms within this many metres of its top.
-ROW_REST_GAP = 0.04
-#: Only boxes at least this many times as tall as they are wide along the row take part.
-ROW_MIN_HEIGHT_REL = 2.0
-#: The image orders a row unless the camera looks along it, within this cosine.
-ROW_ALONG_COS = float(np.cos(np.radians(20.0)))
-#: A split that leaves a box narrower than this along the row (metres) is not made.
-ROW_MIN_WIDTH = 0.005
+
+@dataclass(frozen=True)
+class Params:
+    overlap: float = 0.3  #: share of the narrower box two overlapping row members share
+    axes_deg: float = 15.0  #: degrees a member's yaw may differ from its support's
+    rest_gap: float = 0.04  #: metres between a member's bottom and the support's top
+    min_height_rel: float = 2.0  #: a member is this many times as tall as wide
+    along_deg: float = 20.0  #: degrees: a view this close to the row orders by centres
+    min_width: float = 0.005  #: metres: no split leaves a member narrower
 
 
 def _axis_towards(c: Cuboid, u: np.ndarray) -> tuple[int, float]:
@@ -83,31 +87,21 @@ def _turned(c: Cuboid, s: Cuboid) -> Cuboid:
     """``c`` turned about the vertical through its centre onto the axes of the upright
     ``s`` (the turn of at most 45 degrees that does it): the yaw of a box fitted to a few
     dozen points is noise."""
-    from .model import rotation_about_axis
-
-    ax_c = next(k for k in range(3) if abs(c.rotation[2, k]) < 0.5)
-    ax_s = next(k for k in range(3) if abs(s.rotation[2, k]) < 0.5)
-    a = np.arctan2(c.rotation[1, ax_c], c.rotation[0, ax_c])
-    b = np.arctan2(s.rotation[1, ax_s], s.rotation[0, ax_s])
-    turn = (b - a + np.pi / 4) % (np.pi / 2) - np.pi / 4
-    if abs(turn) < 1e-9:
-        return c
-    return c.with_(rotation=rotation_about_axis(np.array([0.0, 0.0, 1.0]), turn) @ c.rotation)
+    turn = turn_onto(c, s)
+    return c if abs(turn) < 1e-9 else turned_by(c, turn)
 
 
-def _row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views: list) -> float:
+def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.0) -> float:
     """Where ``c`` lies along the row (support ``s``'s long axis ``X``): measured in the
     image where the scan is one view (depth noise moves a box's centre along its ray,
     which the image does not see), else along ``X`` (a box fitted to the points of
     several views is not noisy along any one view's rays; a view looking along the row,
-    within :data:`ROW_ALONG_COS`, sees its boxes one behind the other)."""
+    within ``along_deg``, sees its boxes one behind the other)."""
     if len(views) != 1:
         return float((c.center - s.center) @ X)
-    from .camera import invert, project, transform
-
     v = views[0]
     ray = s.center - np.asarray(v.T_world_cam, float)[:3, 3]
-    if abs(float(ray @ X)) > ROW_ALONG_COS * float(np.linalg.norm(ray)):
+    if abs(float(ray @ X)) > np.cos(np.radians(along_deg)) * float(np.linalg.norm(ray)):
         # looking along the row: the boxes' centres fall on nearly one image point
         return float((c.center - s.center) @ X)
     # where the sensor put it (the overlap repair since moved it across the row, which
@@ -125,24 +119,22 @@ def _row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views: list) -> float:
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def _rows_by_support(arr: Arrangement, min_members: int = 2):
+def rows_by_support(arr: Arrangement, p: Params, min_members: int = 2):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
-    (bottoms within :data:`ROW_REST_GAP` of its top), yaws within :data:`ROW_AXES_DEG`
-    of its own, not parts of its object, at least :data:`ROW_MIN_HEIGHT_REL` times as
+    (bottoms within ``p.rest_gap`` of its top), yaws within ``p.axes_deg``
+    of its own, not parts of its object, at least ``p.min_height_rel`` times as
     tall as wide along its long axis ``X`` (a book on its edge, not a keyboard or a
     monitor's foot).  ``Y``: the support's short horizontal axis."""
-    from .imagine import _resting_on
-
-    cos_tol = np.cos(np.radians(ROW_AXES_DEG))
+    cos_tol = np.cos(np.radians(p.axes_deg))
     by_support: dict[str, list[int]] = {}
     for k, c in enumerate(arr.cuboids):
-        if c.extra.get("hallucinated") or abs(c.rotation[2]).max() < cos_tol:
+        if c.extra.get("hallucinated") or not is_upright(c):
             continue
-        s = _resting_on(arr, c, ROW_REST_GAP)
+        s = resting_on(arr, c, p.rest_gap)
         if s is None or (c.object is not None and c.object == s.object):
             continue
-        if (abs(s.rotation[2]).max() < 1 - 1e-9
+        if (not is_upright(s)
                 or np.min(np.abs(s.rotation.T @ c.rotation).max(axis=0)) < cos_tol):
             continue
         by_support.setdefault(s.id, []).append(k)
@@ -157,36 +149,20 @@ def _rows_by_support(arr: Arrangement, min_members: int = 2):
             c = _turned(arr.cuboids[k], s)
             x0, x1 = _range(c, s.center, X)
             z0, z1 = _range(c, s.center, _UP)
-            if z1 - z0 >= ROW_MIN_HEIGHT_REL * (x1 - x0):
+            if z1 - z0 >= p.min_height_rel * (x1 - x0):
                 cubs[k] = c
         if len(cubs) >= min_members:
             out.append((s, (X, Y), cubs))
     return out
 
 
-def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.0
-                 ) -> tuple[Arrangement, list[str]]:
-    """Set the boxes of each row on a support side by side (module docstring).
-
-    A row: boxes resting on one upright support (bottoms within :data:`ROW_REST_GAP` of
-    its top, axes within :data:`ROW_AXES_DEG` of its own, not parts of its object),
-    linked by pairs that overlap along the support's long axis by :data:`ROW_OVERLAP` of
-    the narrower while apart across it.  A row is changed only when no split leaves a
-    box narrower than :data:`ROW_MIN_WIDTH` and no changed box enters another box;
-    a box goes back only where no view saw the added space empty.  Returns the
-    arrangement and the ids of the boxes changed.
-    """
+def apply(arr, evidence, p: Params, ctx):
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import connected_components
 
-    from .contacts import find_contacts
-    from .extend import FREE_FRACTION_MAX, visible_free_fraction
-    from .symmetry import _box_samples
-
-    views = views or []
-    eye = np.asarray(views[0].T_world_cam, float)[:3, 3] if views else None
-    changed: list[str] = []
-    for s, (X, Y), cubs in _rows_by_support(arr):
+    views = evidence.views
+    eye = evidence.eye
+    for s, (X, Y), cubs in rows_by_support(arr, p):
         members = sorted(cubs)
         xr = {k: _range(c, s.center, X) for k, c in cubs.items()}
         yr = {k: _range(c, s.center, Y) for k, c in cubs.items()}
@@ -199,7 +175,7 @@ def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.
                 narrow = min(xr[i][1] - xr[i][0], xr[j][1] - xr[j][0])
                 apart = yr[i][1] <= yr[j][0] + 1e-9 or yr[j][1] <= yr[i][0] + 1e-9
                 level = min(zr[i][1], zr[j][1]) > max(zr[i][0], zr[j][0])
-                links[n, m] = over >= ROW_OVERLAP * narrow and apart and level
+                links[n, m] = over >= p.overlap * narrow and apart and level
         _, group = connected_components(csr_matrix(links), directed=False)
         rows: dict[int, list[int]] = {}
         for n, k in enumerate(members):
@@ -207,19 +183,19 @@ def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.
         for row in rows.values():
             if len(row) < 2:
                 continue
-            row.sort(key=lambda k: _row_order(cubs[k], s, X, views))
+            row.sort(key=lambda k: row_order(cubs[k], s, X, views, p.along_deg))
             lo = [xr[k][0] for k in row]
             hi = [xr[k][1] for k in row]
             for n in range(len(row) - 1):
                 if hi[n] > lo[n + 1]:
                     mid = 0.5 * (hi[n] + lo[n + 1])
                     hi[n], lo[n + 1] = mid, mid
-            if any(h - l < ROW_MIN_WIDTH for l, h in zip(lo, hi)):
+            if any(h - l < p.min_width for l, h in zip(lo, hi)):
                 continue
             # the face away from the camera goes back to the row's farthest one
             away = 1.0 if eye is None or float((s.center - eye) @ Y) >= 0 else -1.0
             back = max(yr[k][1] if away > 0 else -yr[k][0] for k in row)
-            trial = list(arr.cuboids)
+            new_boxes = []
             for n, k in enumerate(row):
                 c = cubs[k]
                 new = _with_range(c, s.center, X, lo[n], hi[n])
@@ -228,17 +204,12 @@ def resolve_rows(arr: Arrangement, views: list | None = None, margin: float = 0.
                 a0, a1 = (y1, back) if away > 0 else (-back, y0)
                 if a1 > a0:
                     added = _with_range(new, s.center, Y, a0, a1)
-                    if not (views and visible_free_fraction(_box_samples(added), views, margin)
-                            > FREE_FRACTION_MAX):
+                    if not evidence.seen_empty(box_samples(added)):
                         new = _with_range(new, s.center, Y, min(y0, a0), max(y1, a1))
-                trial[k] = new
-            cand = arr.with_(cuboids=tuple(trial))
-            ids = {cubs[k].id for k in row}
-            if any(a in ids or b in ids for a, b, _ in find_contacts(cand).penetrations):
-                continue
-            arr = cand
-            changed += sorted(ids)
-    return arr, changed
+                new_boxes.append(new)
+            v = yield Edit(tuple(new_boxes), f"a row of {len(row)} on {s.id} set side by side")
+            if v.ok:
+                arr = v.arrangement
 
 
-__all__ = ["resolve_rows", "ROW_OVERLAP", "ROW_AXES_DEG", "ROW_REST_GAP", "ROW_MIN_WIDTH"]
+PRIOR = Prior("rows", "complete", Params(), apply, principle_of(__doc__))

@@ -1,0 +1,216 @@
+"""Parts of one object meet: a short gap between two of its parts is noise, not a gap.
+
+Evidence: the segmentation's objects and the depth views.  Regularity: an object is one
+connected rigid body, and a shelf's board whose end was not seen stops a few
+centimetres short of its side panel.  Two parts of one object that a short extension
+(:func:`pipeline.search.short_join`) or two short ones across a corner
+(:func:`corner_joins`: a desk's panel just past the end of its top) bring together are
+joined, smallest added volume first, trimming the noisy edge of another object's box in
+the way by at most ``trim_abs`` or ``trim_rel`` of its extent (never ``trim_max_share``
+of it).  Two parts already held together through their object's other parts are not
+joined through space a view saw empty, nor along a third part touching both.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..boxops import extended, floor_height, near, overlap_face, same_object_groups, z_range
+from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
+from ..evidence import FREE_FRACTION_MAX, slab_samples
+from ..model import Arrangement, box_corners
+from .base import Edit, Prior, principle_of
+
+
+@dataclass(frozen=True)
+class Params:
+    max_rounds: int = 64  #: passes over the pairs
+    trim_abs: float = 0.02  #: metres another object's box may give way ...
+    trim_rel: float = 0.1  #: ... or this fraction of its extent, whichever is larger ...
+    trim_max_share: float = 0.5  #: ... but never more than this share of it
+
+
+def _seen_through(arr: Arrangement, extensions, evidence) -> bool:
+    """Whether a view saw empty some slab the ``extensions`` would add."""
+    return bool(evidence) and any(
+        evidence.free_fraction(slab_samples(arr, x)) > FREE_FRACTION_MAX for x in extensions)
+
+
+def apply(arr, evidence, p: Params, ctx):
+    from ..extend import MAX_EXTENSION_REL, apply_offsets, offsets_of, pair_edges
+    from ..search import along_link, short_join, touching_links
+
+
+    if not any(c.object is not None for c in arr.cuboids):
+        return
+    views = evidence.views
+    max_ext = MAX_EXTENSION_REL * arr.scale_length()
+    for _ in range(p.max_rounds):
+        K = len(arr.cuboids)
+        trials = []
+        held = same_object_groups(arr) if views else {}
+        reached = set()  # pairs that touch or that one extension joins
+        edges = [e for e in pair_edges(arr, max_ext, same_object=True)
+                 if e.same_object and not isinstance(e.b, str)]
+        links = touching_links(edges)  # parts of one object touching each other
+        for e in edges:
+            if e.touching or any(short_join(arr, o) for o in e.options):
+                reached.add((min(e.a, e.b), max(e.a, e.b)))
+            if e.touching:
+                continue
+            # parts already held together through their object's other parts (a screen
+            # on its neck on its foot) do not grow through space the sensor saw empty,
+            # nor along a part that touches them both (beside the neck onto the foot)
+            both = held and held.get(e.a) == held.get(e.b)
+            trials += [(o.volume, e.a, e.b, o) for o in e.options
+                       if o.extensions and short_join(arr, o)
+                       and not (both and (_seen_through(arr, o.extensions, evidence)
+                                          or along_link(arr, o.extensions, links,
+                                                        e.a, e.b)))]
+        for a, b, o in corner_joins(arr, max_ext, reached):
+            if not (held and held.get(a) == held.get(b)
+                    and _seen_through(arr, o.extensions, evidence)):
+                trials.append((o.volume, a, b, o))
+        touched: set[int] = set()  # boxes changed this round: their trials wait
+        for _vol, a, b, o in sorted(trials, key=lambda t: (t[0], t[1], t[2])):
+            grown = {x.box for x in o.extensions}
+            if touched & ({a, b} | grown):
+                continue
+            geom = apply_offsets(arr, offsets_of(list(o.extensions), K))
+            cubs = list(geom.cuboids)
+            near_ = near(geom, grown)  # only boxes near the grown ones can be entered
+            local = geom.with_(cuboids=tuple(cubs[n] for n in near_))
+            ok = True
+            for pp, q, _depth in find_contacts(local).penetrations:
+                kp, kq = geom.index.get(pp), geom.index.get(q)
+                if kp is None or kq is None or (kp in grown and kq in grown):
+                    ok = False  # into a support, or two grown boxes into each other
+                    break
+                if kp not in grown and kq not in grown:
+                    continue  # an overlap the join did not make
+                k, other = (kq, kp) if kp in grown else (kp, kq)
+                r = cubs[k]
+                if r.object is not None and r.object == cubs[other].object:
+                    ok = False
+                    break
+                face = overlap_face(r, cubs[other])
+                if face is None:
+                    continue
+                depth, axis, side = face
+                if depth > min(max(p.trim_abs, p.trim_rel * float(r.size[axis])),
+                               p.trim_max_share * float(r.size[axis])):
+                    ok = False  # (2 cm of a 12 mm book would leave a negative size)
+                    break
+                u = r.rotation[:, axis] * (1.0 if side else -1.0)
+                size = r.size.copy()
+                size[axis] -= depth
+                cubs[k] = r.with_(center=r.center - u * depth / 2, size=size)
+            if not ok:
+                continue
+            trial = arr.with_(cuboids=tuple(cubs))
+            changed = {n for n, (c, before) in enumerate(zip(cubs, arr.cuboids))
+                       if c is not before}
+            names = {cubs[n].id for n in changed}
+            local = trial.with_(cuboids=tuple(cubs[n] for n in near_))
+            if any(pp in names or q in names for pp, q, _ in find_contacts(local).penetrations):
+                continue
+            v = yield Edit(tuple(cubs[n] for n in sorted(changed)),
+                           f"{arr.cuboids[a].id} and {arr.cuboids[b].id}, parts of one object, "
+                           f"meet by a short extension")
+            if not v.ok:
+                continue
+            arr = v.arrangement
+            touched |= changed | {a, b}
+        if not touched:
+            break
+
+
+
+def corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
+    """Joins of two parts of one object apart across a corner: ``(a, b, option)``.
+
+    A part that sits just beyond the end of another and a little off its face (a desk's
+    side panel 2 mm past the end of a top shrunk by noise and 6 cm below it; a chair's
+    back just behind the seat's rear edge and just above it) meets it by no single
+    extension: one box's face reaches past the other's far side (the top over the whole
+    panel), then the other's face reaches it (the panel up to the top).  Both must be
+    short (:data:`pipeline.search.SHORT_JOIN` of the box's extent) and the two must then
+    touch.  Smallest added volume first, except that a part hanging above the other's
+    end grows down past it first where that takes its bottom near the floor (within
+    :data:`pipeline.search.SHORT_JOIN` of its height: a shelf's side panel, fitted down
+    to the top of the bottom board in front of it, reaches past the board and the board
+    meets its face, rather than the board sliding in under the panel and the panel
+    standing on it, out of the floor's reach), and last where it would end hanging
+    beside the other far above the floor (a chair's back rests on its seat).  Pairs in
+    ``skip`` (touching, or joined by one extension) are not tried.
+    """
+    from ..extend import Extension, Option
+    from ..search import SHORT_JOIN
+
+    K = len(arr.cuboids)
+    if K < 2:
+        return []
+    C, R, S = arr.centers, arr.rotations, arr.sizes
+    ii, jj = candidate_pairs(C, R, S, max_ext)
+    corners = box_corners(C, R, S)
+    floor = floor_height(arr)
+    out = []
+    for i, j in zip(ii.tolist(), jj.tolist()):
+        ci, cj = arr.cuboids[i], arr.cuboids[j]
+        if ci.object is None or ci.object != cj.object or (i, j) in skip:
+            continue
+        tol = float(pair_tolerance(S[i], S[j]))
+        best, best_key = None, None
+        for a, b in ((i, j), (j, i)):
+            for axis in range(3):
+                u = R[a][:, axis]
+                for side in (0, 1):
+                    sgn = 1.0 if side else -1.0
+                    face = sgn * (C[a] @ u) + S[a, axis] / 2
+                    proj = sgn * (corners[b] @ u) - face
+                    near, far = float(proj.min()), float(proj.max())
+                    if near < -tol or far <= tol or far > SHORT_JOIN * S[a, axis]:
+                        continue
+                    x1 = Extension(a, axis, side, far)
+                    grown = extended(arr.cuboids[a], x1)
+                    # the other box reaches the grown one through the face nearest it
+                    for axis2 in range(3):
+                        v = R[b][:, axis2]
+                        for side2 in (0, 1):
+                            sgn2 = 1.0 if side2 else -1.0
+                            face2 = sgn2 * (C[b] @ v) + S[b, axis2] / 2
+                            gap = float((sgn2 * (grown.corners() @ v) - face2).min())
+                            if gap <= tol or gap > SHORT_JOIN * S[b, axis2]:
+                                continue
+                            x2 = Extension(b, axis2, side2, gap)
+                            other = extended(arr.cuboids[b], x2)
+                            sep, _, _ = sat_separation(
+                                grown.center[None], grown.rotation[None], grown.size[None] / 2,
+                                other.center[None], other.rotation[None], other.size[None] / 2,
+                                np.array([tol]))
+                            if abs(float(sep[0])) > tol:
+                                continue
+                            vol = x1.volume(S) + x2.volume(S)
+                            # a part hanging over the other's end grows down past it
+                            # (its bottom there is where the other hid it) rather than
+                            # the other sliding in under it, when that takes it down
+                            # near the floor (a shelf's side panel past its bottom
+                            # board); one that would end hanging beside the other, far
+                            # above the floor (a chair's back beside its seat), rests
+                            # on it instead
+                            down = 1
+                            if sgn * u[2] < -0.9 and z_range(
+                                    arr.cuboids[a])[0] >= z_range(arr.cuboids[b])[1] - tol:
+                                low = z_range(grown)[0]
+                                down = 0 if floor is not None and low - floor <= \
+                                    SHORT_JOIN * (z_range(grown)[1] - low) else 2
+                            if best is None or (down, vol) < best_key:
+                                best, best_key = Option("fixed", (x1, x2), vol), (down, vol)
+        if best is not None:
+            out.append((i, j, best))
+    return out
+
+
+PRIOR = Prior("join_parts", "complete", Params(), apply, principle_of(__doc__))
