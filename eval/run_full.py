@@ -119,6 +119,8 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
         lines += [f"Even with every candidate contact fixed, these boxes cannot be held: "
                   f"{', '.join(rep.unstable)} (a support was probably not seen); "
                   "the result is the best effort.", ""]
+    if report0.get("notes"):
+        lines += ["Notes: " + "; ".join(report0["notes"]), ""]
     lines += ["## Timings (seconds)", "", "| step | seconds |", "|---|---|"]
     lines += [f"| initial: {k} | {v:.3f} |" for k, v in report0["timings"].items() if k != "total"]
     lines += [f"| imagine: {k} | {v:.3f} |" for k, v in rep.timings.items()]

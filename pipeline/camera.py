@@ -88,7 +88,8 @@ def write_intrinsics(intr: Intrinsics, path: str | os.PathLike) -> None:
 
 
 def read_pose(path: str | os.PathLike) -> np.ndarray:
-    """Read a 4x4 camera-to-world matrix (a JSON list of 4 rows, or ``{"T_world_cam": ...}``)."""
+    """Read a 4x4 camera-to-world matrix (a JSON list of 4 rows, ``{"T_world_cam": ...}``,
+    or an ``arrangement.json`` of an earlier run: its ``meta.camera_pose``)."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -97,7 +98,8 @@ def read_pose(path: str | os.PathLike) -> np.ndarray:
     except (OSError, json.JSONDecodeError) as exc:
         raise InputError(f"{path}: cannot read camera pose ({exc})") from None
     if isinstance(data, dict):
-        data = data.get("T_world_cam", data.get("camera_pose"))
+        meta = data.get("meta") if isinstance(data.get("meta"), dict) else {}
+        data = data.get("T_world_cam", data.get("camera_pose", meta.get("camera_pose")))
     T = np.array(data, dtype=float) if isinstance(data, list) else None
     if T is None or T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(f"{path}: camera pose must be a 4x4 list of numbers (camera-to-world)")

@@ -175,7 +175,8 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     if len(pts) == 0 or not np.all(np.isfinite(pts)):
         raise InputError(f"{scan.source}: empty or non-finite point cloud")
     frame = find_frame(pts, rng, up=scan.up, T_world_input=scan.T_world_cam,
-                       camera_frame=camera)
+                       camera_frame=camera, floor_height=scan.floor_height)
+    notes.extend(frame.notes)
     world = transform(frame.T_world_input, pts)
     timings["planes"] = time.perf_counter() - t
 

@@ -7,6 +7,20 @@ ground normal, the origin is the foot of the camera centre on the ground, and x 
 camera's x axis projected on the ground, so the picture keeps its left and right.  With
 a known pose the frame is kept and a ground fitted within a few degrees of its z is made
 level (z is up for gravity, the statics and the engines; the fitted tilt is noise).
+
+The floor from a prior
+----------------------
+A camera pose says where the floor is: the world of a pose is z up with the floor at
+z = 0 (the contract of scene directories, multi-view folders and of ``unseen run``'s own
+``meta.camera_pose``).  So do ``--up`` with ``--floor-height`` (metres along up in the
+input frame).  With such a prior the floor is the prior, and RANSAC only refines it: a
+RANSAC plane is taken instead when its normal is within :data:`FLOOR_PRIOR_MAX_DEG` of
+the prior's and the floor height it gives (below the input frame's origin: the camera of
+an RGB-D frame) is within :data:`FLOOR_PRIOR_MAX_OFFSET` of the prior's; the largest such
+plane wins.  Otherwise the prior is kept as it is, even
+against a large plane elsewhere (a table top, or a floor the user placed wrongly: the
+given floor wins and the report says by how much RANSAC's plane disagreed).  A floor out
+of the picture is then no error.
 """
 
 from __future__ import annotations
@@ -41,6 +55,11 @@ WALL_MAX_BEHIND = 0.10
 #: wall a slab thicker than the RANSAC threshold, and RANSAC returns it as two planes.
 WALL_TWIN_DEG = 5.0
 WALL_TWIN_DIST = 0.10
+#: With a floor prior (a camera pose, or ``--up`` with ``--floor-height``), a RANSAC
+#: plane refines the floor only when its normal is within this many degrees of the
+#: prior's and the floor height it gives (below the input origin) within this many metres.
+FLOOR_PRIOR_MAX_DEG = 5.0
+FLOOR_PRIOR_MAX_OFFSET = 0.05
 
 
 @dataclass(frozen=True)
@@ -81,6 +100,11 @@ class SceneFrame:
     labels: np.ndarray
     planes: list = field(default_factory=list)
     threshold: float = 0.0
+    #: where the floor came from: ``ransac`` (no prior), ``prior`` (kept as given) or
+    #: ``prior+ransac`` (a RANSAC plane that agrees with the prior)
+    floor: str = "ransac"
+    #: what the report should say about the floor (a prior kept against RANSAC, ...)
+    notes: tuple = ()
 
 
 def scene_scale(points: np.ndarray) -> float:
@@ -115,6 +139,8 @@ def ransac_plane(points: np.ndarray, threshold: float, rng: np.random.Generator,
     ln = np.linalg.norm(nrm, axis=1)
     ok = ln > 1e-12
     nrm, a = nrm[ok] / ln[ok, None], a[ok]
+    if not len(nrm):  # every triple degenerate (collinear or repeated points)
+        return np.array([0.0, 0.0, 1.0]), 0.0, 0
     if orthogonal_to is not None:
         keep = np.abs(nrm @ orthogonal_to) < max_cos
         if not keep.any():
@@ -163,9 +189,72 @@ def ransac_planes(points: np.ndarray, threshold: float, rng: np.random.Generator
     return planes
 
 
+def floor_prior(up: np.ndarray | None = None, T_world_input: np.ndarray | None = None,
+                floor_height: float | None = None) -> Plane | None:
+    """The floor a prior gives, as a plane in the input frame (normal = up), or None.
+
+    ``floor_height`` (metres along up in the input frame, the up of ``up`` or else of
+    the pose) wins over the pose; a pose alone puts the floor at world z = 0.
+    """
+    if floor_height is not None:
+        h = float(floor_height)
+        if not np.isfinite(h):
+            raise InputError(f"--floor-height: must be a finite number of metres, got {h}")
+        if up is not None:
+            n = np.asarray(up, float) / np.linalg.norm(up)
+        elif T_world_input is not None:
+            n = np.asarray(T_world_input, float)[:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        else:
+            raise InputError("--floor-height: give --up too (the direction the height is "
+                             "measured along in the input frame), e.g. --up=-y")
+        return Plane(n, -h, 0)
+    if T_world_input is not None:
+        T = np.asarray(T_world_input, float)
+        # world z of an input point p is (R p + t)_z = n . p + t_z
+        return Plane(T[:3, :3].T @ np.array([0.0, 0.0, 1.0]), float(T[2, 3]), 0)
+    return None
+
+
+def refine_floor(planes: list[Plane], prior: Plane, max_deg: float = FLOOR_PRIOR_MAX_DEG,
+                 max_offset: float = FLOOR_PRIOR_MAX_OFFSET) -> tuple[Plane | None, str]:
+    """The RANSAC plane that agrees with the floor ``prior`` (largest first), or None.
+
+    A plane agrees when its normal (turned to the prior's side) is within ``max_deg`` of
+    the prior's and the floor height it gives differs from the prior's by at most
+    ``max_offset`` metres.  Heights are measured where the prior's floor height is
+    defined: below the input frame's origin (the camera of an RGB-D frame), so an up
+    direction a few degrees off does not move the floor by metres far from the camera.
+    Also returns a line for the report about the largest plane near the prior's
+    direction that did not agree (empty when none).
+    """
+    best, near = None, None
+    cos_max = np.cos(np.radians(max_deg))
+    cos_near = np.cos(np.radians(GROUND_MAX_ANGLE_DEG))
+    for p in planes:
+        c = float(p.normal @ prior.normal)
+        nrm, off = (p.normal, p.offset) if c > 0 else (-p.normal, -p.offset)
+        q = Plane(nrm, off, p.count)
+        if abs(c) < cos_near:
+            continue
+        # the origin is ``offset`` above a plane: the plane lies ``gap`` above the prior
+        gap = float(prior.offset - off)
+        if abs(c) >= cos_max and abs(gap) <= max_offset:
+            if best is None or q.count > best.count:
+                best = q
+        elif near is None or q.count > near[0].count:
+            near = (q, gap, float(np.degrees(np.arccos(min(1.0, abs(c))))))
+    note = ""
+    if near is not None and (best is None or near[0].count > best.count):
+        note = (f"floor: kept the given floor; the largest plane RANSAC found near it lies "
+                f"{near[1]:+.3f} m above it, tilted {near[2]:.1f} deg (a refinement must lie "
+                f"within {max_offset:.2f} m and {max_deg:.0f} deg)")
+    return best, note
+
+
 def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray | None = None,
                T_world_input: np.ndarray | None = None, camera_frame: bool = False,
-               threshold: float | None = None) -> SceneFrame:
+               threshold: float | None = None, floor_height: float | None = None
+               ) -> SceneFrame:
     """Detect ground and walls and choose the world frame.
 
     Parameters
@@ -176,11 +265,15 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         when given, else -y for a camera frame (cameras are held roughly upright),
         else +z.
     T_world_input : (4, 4) float or None
-        A known camera pose (synthetic scenes): kept as is; the ground is still detected.
+        A known camera pose (synthetic scenes): kept as is.  Its world puts the floor at
+        z = 0: the floor comes from it and RANSAC only refines it (module docstring).
     camera_frame : bool
         The input frame is a camera (its origin is the eye).
     threshold : RANSAC inlier distance, metres; default 0.3 % of the scene diameter
         (5 to 20 mm).
+    floor_height : float or None
+        The floor's height along up in the input frame, metres (``--floor-height``); up
+        is ``up``, else the pose's.  Like a pose, a prior RANSAC only refines.
     """
     if len(points) < 50:
         raise InputError("fewer than 50 valid points: nothing to fit (empty or all-NaN scan?)")
@@ -192,6 +285,9 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         prior = np.asarray(up, float) / np.linalg.norm(up)
     else:
         prior = np.array([0.0, -1.0, 0.0]) if camera_frame else np.array([0.0, 0.0, 1.0])
+    floor0 = floor_prior(up, T_world_input, floor_height)
+    if floor0 is not None:
+        prior = floor0.normal
     given = T_world_input is not None or up is not None
     planes = ransac_planes(points, thr, rng)
     cos_g = np.cos(np.radians(GROUND_MAX_ANGLE_DEG if given else 45.0))
@@ -201,15 +297,26 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         if abs(c) >= cos_g:
             nrm, off = (p.normal, p.offset) if c > 0 else (-p.normal, -p.offset)
             cands.append(Plane(nrm, off, p.count))
-    if not cands:
-        hint = "" if given else "; give --up (e.g. --up -y for a camera frame, --up z)"
-        raise InputError(f"no ground plane found (no large plane within "
-                         f"{GROUND_MAX_ANGLE_DEG if given else 45:.0f} deg of the up direction "
-                         f"{np.round(prior, 2).tolist()}){hint}")
-    biggest = max(c.count for c in cands)
-    # the lowest large one: height along up of the plane = -offset; lowest = largest offset
-    large = [c for c in cands if c.count >= GROUND_MIN_SHARE * biggest]
-    g = max(large, key=lambda c: c.offset)
+    notes: tuple = ()
+    if floor0 is not None:
+        g, note = refine_floor(planes, floor0)
+        source = "prior" if g is None else "prior+ransac"
+        if g is None:
+            g = floor0
+        if note:
+            notes = (note,)
+    else:
+        source = "ransac"
+        if not cands:
+            hint = "" if given else "; give --up (e.g. --up=-y for a camera frame, --up z)"
+            raise InputError(f"no ground plane found (no large plane within "
+                             f"{GROUND_MAX_ANGLE_DEG if given else 45:.0f} deg of the up "
+                             f"direction {np.round(prior, 2).tolist()}){hint}; give "
+                             "--floor-height with --up, or a camera pose")
+        biggest = max(c.count for c in cands)
+        # the lowest large one: height along up of the plane = -offset; lowest = largest offset
+        large = [c for c in cands if c.count >= GROUND_MIN_SHARE * biggest]
+        g = max(large, key=lambda c: c.offset)
     n_up = g.normal
 
     # world frame
@@ -220,7 +327,9 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         p0 = -g.offset * n_up
         z0 = float(transform(T, p0[None])[0] @ n_w)
         ground = Support("ground", np.array([0.0, 0.0, z0 / max(n_w[2], 1e-9)]), n_w)
-        if n_w[2] >= np.cos(np.radians(GROUND_LEVEL_MAX_DEG)):
+        if source == "prior" and floor_height is None:
+            ground = Support("ground", np.zeros(3), np.array([0.0, 0.0, 1.0]))  # z = 0 exactly
+        elif source != "prior" and n_w[2] >= np.cos(np.radians(GROUND_LEVEL_MAX_DEG)):
             # the frame's z is up (gravity is -z): the floor is level, at the median height
             # of its points; the fitted tilt is depth noise (0.2-0.3 deg at 3-4 m), and
             # upright boxes on a tilted floor stand on one edge and rock onto the slope
@@ -285,7 +394,7 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
             continue
         labels[on] = len(walls) + 1
         walls.append(wall)
-    return SceneFrame(T, ground, tuple(walls), labels, planes, thr)
+    return SceneFrame(T, ground, tuple(walls), labels, planes, thr, source, notes)
 
 
 def _any_perp(n: np.ndarray) -> np.ndarray:

@@ -36,6 +36,8 @@ class LoadOptions:
     max_depth: float | None = None
     instance: str | None = None
     scribbles: str | None = None
+    floor_height: float | None = None
+    pose: str | None = None
 
 
 @dataclass(frozen=True)
@@ -94,7 +96,8 @@ def load(source, options: LoadOptions | None = None):
     return load_scan(os.fspath(source), color=o.color, depth=o.depth,
                      intrinsics=o.intrinsics, depth_format=o.depth_format,
                      depth_scale=o.depth_scale, up=o.up, max_depth=o.max_depth,
-                     instance=o.instance, scribbles=o.scribbles)
+                     instance=o.instance, scribbles=o.scribbles,
+                     floor_height=o.floor_height, pose=o.pose)
 
 
 def initial(scan, config: RunConfig | None = None, progress=None) -> tuple[Arrangement, dict]:

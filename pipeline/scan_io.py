@@ -69,6 +69,10 @@ class ScanInput:
     instance_image : (H, W) int or None
     up : (3,) float or None
         Up direction in the input frame when the user gave it.
+    floor_height : float or None
+        The floor's height along up in the input frame (metres) when the user gave it
+        (``--floor-height``): with ``up`` or a pose, the floor's prior
+        (:func:`pipeline.planes.floor_prior`).
     source : str
         Where it came from (for reports).
     notes : list of str
@@ -88,6 +92,7 @@ class ScanInput:
     scribbles: np.ndarray | None = None
     instance_image: np.ndarray | None = None
     up: np.ndarray | None = None
+    floor_height: float | None = None
     source: str = ""
     notes: list = field(default_factory=list)
     #: instance id -> object name (a synthetic scene's ``scene.json``: id k = cuboids[k-1])
@@ -530,15 +535,37 @@ def load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str |
               intrinsics: str | None = None, depth_format: str = "auto",
               depth_scale: float | None = None, up: str | np.ndarray | None = None,
               max_depth: float | None = None, instance: str | None = None,
-              scribbles: str | None = None) -> ScanInput:
+              scribbles: str | None = None, floor_height: float | None = None,
+              pose: str | os.PathLike | None = None) -> ScanInput:
     """Load any supported input (scene dir, RGB-D folder, single depth file, cloud).
 
     ``color``/``depth``/``instance``/``scribbles`` are file names, relative to a folder
     ``path`` or absolute; ``intrinsics`` is ``"fx,fy,cx,cy"`` or a JSON file;
     ``depth_scale`` None means 1000 (millimetres).  A depth file of a known public data
     set (see :func:`known_layout`) fills in whatever of colour, encoding and intrinsics
-    was not given.
+    was not given.  ``floor_height`` (metres along up in the input frame) is kept for the
+    floor's prior; ``pose`` is a camera-to-world file (a 4x4 JSON, or the
+    ``arrangement.json`` of an earlier run, whose ``meta.camera_pose`` is used) that
+    replaces the input's own ``camera_pose.json``.
     """
+    scan = _load_scan(path, color=color, depth=depth, intrinsics=intrinsics,
+                      depth_format=depth_format, depth_scale=depth_scale, up=up,
+                      max_depth=max_depth, instance=instance, scribbles=scribbles)
+    if pose is not None:
+        if scan.views:
+            raise InputError(f"--pose: {scan.source} is a multi-view folder; each view "
+                             "carries its own camera_pose.json")
+        scan = replace(scan, T_world_cam=read_pose(pose), notes=[*scan.notes, f"pose from {pose}"])
+    if floor_height is not None:
+        scan = replace(scan, floor_height=float(floor_height))
+    return scan
+
+
+def _load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str | None = None,
+               intrinsics: str | None = None, depth_format: str = "auto",
+               depth_scale: float | None = None, up: str | np.ndarray | None = None,
+               max_depth: float | None = None, instance: str | None = None,
+               scribbles: str | None = None) -> ScanInput:
     path = Path(path)
     up_vec = parse_up(up) if isinstance(up, str) else (None if up is None else np.asarray(up, float))
     if not path.exists():

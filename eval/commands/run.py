@@ -44,8 +44,12 @@ explicit flags override, and the same works for any folder with them:
     unseen run {R}/open3d_testdata_rgbd --color TUM_color.png --depth TUM_depth.png \\
       --depth-scale 5000 --intrinsics 525,525,319.5,239.5 --out out/tum
 
-If the ground is not found, say which way is up in the input frame: --up -y (camera
-frames, y down), --up z (z-up clouds).
+The floor: with a camera pose (a scene directory's scan/camera_pose.json, a multi-view
+folder, --pose) the floor is the pose's world z = 0, and RANSAC only refines it; so is
+--floor-height H with --up (H metres along up in the input frame):
+    unseen run frame_dir --out out --up=-y --floor-height -1.2
+Without either the floor is the lowest large plane RANSAC finds; if it is not found, say
+which way is up in the input frame: --up=-y (camera frames, y down), --up z (z-up clouds).
 """
 
 
@@ -79,6 +83,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
     p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
+    p.add_argument("--floor-height", type=float, default=None, metavar="H",
+                   help="the floor's height in metres along up in the input frame (with "
+                        "--up, or along a camera pose's up), e.g. -1.2 for a camera held "
+                        "1.2 m above the floor with --up=-y: the floor comes from it and "
+                        "RANSAC only refines it (a plane within 5 deg and 5 cm), so the "
+                        "floor may be out of the picture")
+    p.add_argument("--pose", metavar="FILE",
+                   help="camera-to-world pose (a 4x4 JSON, or an earlier run's "
+                        "arrangement.json: its meta.camera_pose) replacing INPUT's own "
+                        "camera_pose.json; its world is z up with the floor at z = 0")
     p.add_argument("--instance", help="instance id image (16-bit, 0 = none)")
     p.add_argument("--scribbles", help="scribble image: one stroke id/colour per object")
     p.add_argument("--segmentation", default="auto",
@@ -108,7 +122,9 @@ def config_from_args(args: argparse.Namespace):
     load = LoadOptions(color=args.color, depth=args.depth, intrinsics=args.intrinsics,
                        depth_format=args.depth_format, depth_scale=args.depth_scale,
                        up=args.up, max_depth=args.max_depth, instance=args.instance,
-                       scribbles=args.scribbles)
+                       scribbles=args.scribbles,
+                       floor_height=getattr(args, "floor_height", None),
+                       pose=getattr(args, "pose", None))
     imagine = ImagineConfig(budget=args.budget, mu=args.mu, disabled=frozenset(disabled))
     return RunConfig(seed=args.seed, segmentation=args.segmentation, cell=args.cell,
                      edges=not args.no_edges, stage=args.stage, imagine=imagine, load=load)

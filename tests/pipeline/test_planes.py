@@ -153,3 +153,9 @@ def test_up_flag_selects_ground_in_an_unusual_frame():
     cloud = transform(fr.T_world_cam, pts) @ R.T
     f = find_frame(cloud, np.random.default_rng(5), up=np.array([1.0, 0, 0]))
     assert abs(abs(f.T_world_input[:3, :3].T[:, 2] @ np.array([1.0, 0, 0])) - 1) < 1e-4
+
+
+def test_ransac_plane_of_collinear_points_finds_no_plane():
+    line = np.outer(np.linspace(0.0, 1.0, 50), [1.0, 2.0, 3.0])
+    n, off, cnt = ransac_plane(line, 0.01, np.random.default_rng(0))
+    assert cnt == 0 and np.linalg.norm(n) == pytest.approx(1.0)
