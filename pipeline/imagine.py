@@ -29,6 +29,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+from .constants import ENERGY_THRESHOLD
 from .contacts import find_contacts
 from .evidence import Evidence
 from .extend import candidate_edges, prune_by_visibility
@@ -227,8 +228,9 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     timings["settle"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    if final.stability is not None and final.stability.energy > (threshold or 1e-5) / 100:
-        refined = refine(final, mu=mu, max_steps=config.refine_steps,
+    if final.stability is not None and final.stability.energy > (
+            ENERGY_THRESHOLD if threshold is None else threshold) / 100:
+        refined = refine(final, mu=mu, max_steps=config.refine_steps, threshold=threshold,
                          deadline=max(t0 + budget, time.perf_counter() + 0.1 * budget))
         fixed = [c for c in refined.arrangement.contacts if c.type == "fixed"]
         final = finalize(refined.arrangement, fixed, mu=mu, threshold=threshold)

@@ -159,11 +159,14 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
     return None if x is None else np.asarray(x)
 
 
-def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float = 1e-5,
+def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float | None = None,
            tilt_deg: float = 0.0, deadline: float | None = None,
            contacts: ContactSet | None = None, solve_cache: dict | None = None,
            stall: float | None = None) -> RefineResult:
     """Lower the stability energy of ``arr`` keeping its contacts (see module docstring).
+
+    Steps stop once the energy is below a hundredth of ``threshold`` (the stability
+    threshold on the energy; None: :data:`pipeline.constants.ENERGY_THRESHOLD`).
 
     With ``tilt_deg`` > 0 the energy is that of the first tilt of gravity by that angle
     under which the arrangement fails (``check_stability(tilt_deg=...)``): the result then
@@ -177,6 +180,9 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     """
     import time
 
+    from .constants import ENERGY_THRESHOLD
+
+    threshold = ENERGY_THRESHOLD if threshold is None else float(threshold)
     energy = _Evaluator(arr, mu, tilt_deg, contacts, solve_cache)
     E0, res, _ = energy(arr)
     evals = 1

@@ -47,6 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--dask", default=None, metavar="ADDRESS",
                        help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
     parser.add_argument("--quick", action="store_true", help="a small, fast version (CI)")
+    abl = parser.add_argument_group("ablation suite only")
+    abl.add_argument("--pool-seed", type=int, default=None, metavar="S",
+                     help="first seed of the held-out pool (default 300000; use a fresh one "
+                          "for each round of work)")
+    abl.add_argument("--pool-n", type=int, default=None, metavar="N",
+                     help="held-out scenes per family (default 20)")
     reg = parser.add_argument_group("regression suite only")
     reg.add_argument("--only", nargs="+", default=None, metavar="CASE",
                      help="check only these cases (names in eval/suites/regression.py)")
@@ -80,6 +86,9 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
     cmd += ["--dask", args.dask] if args.dask else ["--workers", str(args.workers)]
     if args.quick:
         cmd.append("--quick")
+    for name in ("pool_seed", "pool_n"):
+        if getattr(args, name, None) is not None:
+            cmd += ["--" + name.replace("_", "-"), str(getattr(args, name))]
     if getattr(args, "only", None):
         cmd += ["--only", *args.only]
     if getattr(args, "expected", None) is not None:
@@ -124,6 +133,15 @@ def run(args: argparse.Namespace) -> int:
     used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
     if used and args.suite != "regression":
         raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")
+    used = [f"--{n.replace('_', '-')}" for n in ("pool_seed", "pool_n")
+            if getattr(args, n, None) is not None]
+    if used and args.suite != "ablation":
+        raise InputError(f"{', '.join(used)}: only for the ablation suite, not {args.suite!r}")
+    for n in ("pool_seed", "pool_n"):
+        v = getattr(args, n, None)
+        if v is not None and v < (0 if n == "pool_seed" else 1):
+            raise InputError(f"--{n.replace('_', '-')}: must be "
+                             f"{'non-negative' if n == 'pool_seed' else 'at least 1'}, got {v}")
     if args.out.exists() and not args.out.is_dir():
         raise InputError(f"--out {args.out}: exists and is not a folder")
     args.out.mkdir(parents=True, exist_ok=True)

@@ -143,6 +143,7 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
     rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
                n_gt_contacts=len(gt.contacts), n_initial=len(initial.cuboids),
                unseen=unseen, fn_unseen=missed_at(fn, unseen),
+               priors={k: list(v) for k, v in sorted(result.report.counts().items())},
                **summary_of(result.arrangement, result.report))
     if engine:
         rec["stands"] = settle_stands(result.arrangement, engine)

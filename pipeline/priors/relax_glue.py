@@ -144,7 +144,8 @@ def apply(arr, evidence, p: Params, ctx):
                           if stands(g, cs)), None)
         if found is None and len(group) <= p.max_group:
             try:
-                refined = refine(sub, mu=mu, max_steps=p.max_steps, tilt_deg=tilt,
+                refined = refine(sub, mu=mu, max_steps=p.max_steps, threshold=threshold,
+                                 tilt_deg=tilt,
                                  deadline=deadline, contacts=sub_cs,
                                  solve_cache=cache, stall=p.refine_stall).arrangement
             except InputError:
