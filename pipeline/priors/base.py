@@ -87,6 +87,7 @@ class Context:
     mu: float = 0.7
     threshold: float | None = None
     deadline: float = float("inf")
+    memo: dict = field(default_factory=dict, repr=False, compare=False)  #: the gate's
 
 
 Proposals = Generator[Edit, Verdict, None]

@@ -11,9 +11,10 @@ An edit (:class:`pipeline.priors.base.Edit`) is rejected, with the reason, when
    a box (each pushed face's slab; for a turned box, the part outside the old box; a
    new box whole) lie clearly in front of the depth (:mod:`pipeline.evidence`, one
    noise model for every prior);
-3. **after the search, the arrangement no longer stands**: the arrangement with the
-   edit, its contacts listed from the geometry (``fixed`` where the edit says), fails
-   the analytic check.
+3. **after the search, a box falls that stood**: the arrangement with the edit, its
+   contacts listed from the geometry (``fixed`` where the edit says), fails the analytic
+   check with gravity tilted by :data:`TILT_DEG` (the margin the search demands: no
+   knife-edge explanations) for a box that stood before the edit.
 
 Rules 1 and 2 judge what is added beyond the fit, from the ``complete`` stage on.  The
 ``prepare`` stage corrects the fit itself (a box stood upright, turned to hold more of
@@ -41,6 +42,9 @@ from .base import Context, Edit, Verdict
 ENTER_TOL = 1e-6
 #: Samples per axis of the volume an edit adds.
 SAMPLES = 5
+#: Gravity is tilted by this many degrees (towards +-x and +-y) in rule 3: the search's
+#: margin (:data:`pipeline.search.ROBUST_TILT_DEG`).
+TILT_DEG = 2.0
 
 
 def apply_edit(arr: Arrangement, edit: Edit) -> Arrangement:
@@ -152,7 +156,34 @@ def accept(arr: Arrangement, edit: Edit, evidence: Evidence, ctx: Context | None
                         threshold=ctx.threshold)
     except InputError:
         return Verdict(False, arr, "a fixed pair no longer touches")
-    if cand.stability is None or not cand.stability.stable:
-        e = cand.stability.energy if cand.stability is not None else float("nan")
-        return Verdict(False, arr, f"the arrangement no longer stands (E = {e:.3g})")
+    falls = _falling(cand, ctx) - _falling(arr, ctx)
+    if falls:
+        return Verdict(False, arr, f"{', '.join(sorted(falls))} would fall "
+                                   f"(gravity tilted {TILT_DEG:g} deg)")
     return Verdict(True, cand)
+
+
+def _falling(arr: Arrangement, ctx: Context) -> set[str]:
+    """Ids of the boxes of ``arr`` that fail the analytic check with gravity tilted by
+    :data:`TILT_DEG` (remembered per arrangement in ``ctx.memo``)."""
+    from ..stability import check_stability
+
+    key = id(arr)
+    hit = ctx.memo.get(key)
+    if hit is not None and hit[0] is arr:
+        return hit[1]
+    cache = ctx.memo.setdefault("solves", {})
+    if len(cache) > 512:
+        cache.clear()
+    try:
+        res = check_stability(arr, mu=ctx.mu, threshold=ctx.threshold, tilt_deg=TILT_DEG,
+                              solve_cache=cache)
+        out = set() if res.stable else set(res.unstable_ids) or set(arr.ids)
+    except InputError:  # a listed fixed pair apart: nothing stands as listed
+        out = set(arr.ids)
+    if len(ctx.memo) > 64:
+        solves = ctx.memo.pop("solves")
+        ctx.memo.clear()
+        ctx.memo["solves"] = solves
+    ctx.memo[key] = (arr, out)
+    return out
