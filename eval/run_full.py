@@ -170,8 +170,9 @@ def check_engines(arr, mu: float) -> dict:
     return out
 
 
-def run_full(args: argparse.Namespace) -> tuple[int, str]:
-    """Run and write everything; returns (exit code, one summary line for the terminal)."""
+def run_full(args: argparse.Namespace, config) -> tuple[int, str]:
+    """Run and write everything (``config``: the :class:`pipeline.run.RunConfig` of
+    ``args``); returns (exit code, one summary line for the terminal)."""
     from pipeline.progress import Progress
 
     out = Path(args.out)
@@ -179,12 +180,11 @@ def run_full(args: argparse.Namespace) -> tuple[int, str]:
         raise InputError(f"--out {out}: exists and is not a folder")
     if not args.budget > 0:
         raise InputError(f"--budget: must be a positive number of seconds, got {args.budget}")
-    from eval.commands.run import config_from_args
     from pipeline.run import run_scan
 
     t0 = time.perf_counter()
     with Progress(None, "unseen run") as bar:
-        result = run_scan(args.input, config_from_args(args),
+        result = run_scan(args.input, config,
                           progress=lambda name: bar.update(note=name),
                           search_progress=lambda done, total: bar.update(
                               note=f"group {done}/{total}"))

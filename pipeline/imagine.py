@@ -34,7 +34,8 @@ from .contacts import find_contacts
 from .evidence import Evidence
 from .extend import candidate_edges, prune_by_visibility
 from .model import Arrangement, Cuboid, ObservedBox
-from .priors import PRIORS, Context, Edit, ImagineConfig, accept
+from .priors import Context, Edit, ImagineConfig
+from .priors.runner import EditLog, EditRecord, run_stage
 from .refine import refine
 from .search import finalize, search
 from .snap import close_gaps
@@ -43,28 +44,11 @@ from .snap import close_gaps
 ISOLATE_ROUNDS = 3
 
 
-@dataclass(frozen=True)
-class EditRecord:
-    """One proposal of a prior and what the gate said of it."""
-
-    prior: str
-    stage: str
-    boxes: tuple[str, ...]
-    reason: str
-    accepted: bool
-    why_not: str = ""
-
-    def to_json(self) -> dict:
-        return {"prior": self.prior, "stage": self.stage, "boxes": list(self.boxes),
-                "reason": self.reason, "accepted": self.accepted, "why_not": self.why_not}
-
-
 @dataclass
-class ImagineReport:
-    """What :func:`imagine` did: every proposal and its verdict, the search's statistics,
-    the verdict of the result and timings per step (seconds)."""
+class ImagineReport(EditLog):
+    """What :func:`imagine` did: every proposal and its verdict (:class:`EditLog`), the
+    search's statistics, the verdict of the result and timings per step (seconds)."""
 
-    edits: list[EditRecord] = field(default_factory=list)
     disabled: tuple[str, ...] = ()
     candidate_edges: int = 0
     candidate_options: int = 0
@@ -81,29 +65,6 @@ class ImagineReport:
     energy: float = float("nan")
     unstable: list[str] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
-    added: list[str] = field(default_factory=list)  #: boxes the priors added
-
-    def changed_by(self, prior: str) -> list[str]:
-        """Ids of the boxes the accepted edits of ``prior`` changed or added (in order,
-        each once)."""
-        out: list[str] = []
-        for e in self.edits:
-            if e.accepted and e.prior == prior:
-                out += [b for b in e.boxes if b not in out]
-        return out
-
-    @property
-    def hallucinated(self) -> list[str]:
-        """Boxes the priors added (no observed box): copies, connectors, hidden supports."""
-        return list(self.added)
-
-    def counts(self) -> dict[str, tuple[int, int]]:
-        """Prior -> (edits accepted, edits rejected)."""
-        out: dict[str, list[int]] = {}
-        for e in self.edits:
-            n = out.setdefault(e.prior, [0, 0])
-            n[0 if e.accepted else 1] += 1
-        return {k: (v[0], v[1]) for k, v in out.items()}
 
     def to_json(self) -> dict:
         return {"edits": [e.to_json() for e in self.edits], "disabled": list(self.disabled),
@@ -123,32 +84,6 @@ class ImagineResult:
     arrangement: Arrangement
     initial: Arrangement  #: after the prepare and complete priors, before extension
     report: ImagineReport
-
-
-def run_stage(stage: str, arr: Arrangement, evidence: Evidence, ctx: Context,
-              config: ImagineConfig, report: ImagineReport, only: str | None = None
-              ) -> Arrangement:
-    """Run the enabled priors of ``stage`` (or the one named ``only``) on ``arr``: each
-    proposal through :func:`pipeline.priors.gate.accept`, recorded in ``report``."""
-    for prior in PRIORS:
-        if prior.stage != stage or not config.enabled(prior.name) or (
-                only is not None and prior.name != only):
-            continue
-        gen = prior.apply(arr, evidence, config.params_of(prior), ctx)
-        verdict = None
-        while True:
-            try:
-                edit = next(gen) if verdict is None else gen.send(verdict)
-            except StopIteration:
-                break
-            verdict = accept(arr, edit, evidence, ctx, stage)
-            new = [c.id for c in edit.boxes if c.id not in arr.index]
-            report.edits.append(EditRecord(prior.name, stage, edit.ids, edit.reason,
-                                           verdict.ok, verdict.reason))
-            if verdict.ok:
-                arr = verdict.arrangement
-                report.added += [i for i in new if i not in report.added]
-    return arr
 
 
 def _stable(arr: Arrangement) -> bool:

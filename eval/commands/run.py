@@ -207,7 +207,7 @@ def run(args: argparse.Namespace) -> int:
     if args.stage == "full":
         from eval.run_full import run_full
 
-        code, line = run_full(args)
+        code, line = run_full(args, config_from_args(args))
         print(line)
         return code
     from pipeline.progress import Progress
