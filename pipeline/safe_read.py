@@ -9,8 +9,7 @@ Every reader of a user-named file goes through here, so a hostile path fails wit
 - :func:`read_bytes` reads at most a stated number of bytes;
 - :func:`load_json` bounds the size, the nesting depth (measured on the text before
   ``json.loads``, which would otherwise recurse until ``RecursionError``) and the number
-  of digits of an integer (a 400-digit integer overflows every float conversion), and
-  rejects ``NaN`` / ``Infinity``, which are not JSON.
+  of digits of an integer (a 400-digit integer overflows every float conversion).
 """
 
 from __future__ import annotations
@@ -49,7 +48,7 @@ def regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise InputError(f"{p}: no such {what}") from None
+        raise InputError(f"{p}: no such file (expected a {what})") from None
     except OSError as exc:
         raise InputError(f"{p}: cannot read the {what} ({exc.strerror})") from None
     if stat.S_ISDIR(st.st_mode):
@@ -96,7 +95,9 @@ def _int(text: str) -> int:
 
 
 def _constant(name: str) -> Any:
-    raise InputError(f"{name} is not a JSON number; write finite numbers")
+    """``NaN``/``Infinity`` (Python's JSON extension) parse to floats, so that the
+    validators reject them naming the field."""
+    return float(name.replace("Infinity", "inf"))
 
 
 def parse_json(data: bytes, where: str) -> Any:

@@ -27,16 +27,35 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from eval.commands.synth import KINDS
+    from pipeline.errors import InputError
+    from pipeline.outdir import check_out, output_folder
+
+    if args.seed < 0:
+        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    if not (0.01 <= args.budget <= 86400):
+        raise InputError(f"--budget: must be a positive number of seconds up to a day, got "
+                         f"{args.budget}")
+    if args.family not in KINDS:
+        raise InputError(f"--family: unknown scene family {args.family!r}; choose one of: "
+                         + ", ".join(KINDS))
+    check_out(args.out)
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    with output_folder(out) as tmp:
+        made, scan, initial, result, engines = _make(args, tmp, out)
+    scene_dir, result_dir = out / "scene", out / "result"
+    return _summary(args, made, initial, result, engines, scene_dir, result_dir, t0)
+
+
+def _make(args: argparse.Namespace, tmp: Path, out: Path):
     from eval.commands.run import run_initial
-    from eval.metrics import score_arrangement
     from eval.run_full import check_engines, solve, write_full_outputs
     from pipeline.errors import InputError
     from pipeline.progress import Progress
     from synth_scenes.scene_dir import make_scene_dir
 
-    t0 = time.perf_counter()
-    out = Path(args.out)
-    scene_dir, result_dir = out / "scene", out / "result"
+    scene_dir, result_dir = tmp / "scene", tmp / "result"
     with Progress(5, "unseen demo") as bar:
         bar.update(0, "synthesizing the scene")
         # the demo camera looks from the front, so the table hides the tower's lower boxes
@@ -61,6 +80,13 @@ def run(args: argparse.Namespace) -> int:
         write_full_outputs(result_dir, scan, initial, result, report0, engines,
                            f"unseen demo --out {out} --seed {args.seed}", 0)
         bar.update(1)
+    return made, scan, initial, result, engines
+
+
+def _summary(args, made, initial, result, engines, scene_dir: Path, result_dir: Path,
+             t0: float) -> int:
+    from eval.metrics import score_arrangement
+
     score = score_arrangement(result.arrangement, made.truth.arrangement, initial=initial)
     final = result.arrangement
     rep = result.report

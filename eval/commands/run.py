@@ -61,13 +61,16 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "without boxes nothing can hold up, and dropping glue joints (the best "
                         "found so far is kept); refinement then gets what is left, at least a "
                         "tenth of it")
-    p.add_argument("--mu", type=float, default=0.7, help="friction coefficient (default 0.7)")
+    p.add_argument("--mu", type=float, default=0.7,
+                   help="friction coefficient (default 0.7): used by the search, written to "
+                        "scene.xml / scene.urdf and recorded as meta.mu for check and export")
     p.add_argument("--check-engines", action="store_true",
                    help="settle the result in MuJoCo and PyBullet and report their verdicts")
     p.add_argument("--no-symmetry", action="store_true",
                    help="do not hallucinate wholly occluded parts (fourth legs) by symmetry")
-    p.add_argument("--color", help="colour image file (relative to INPUT folder or absolute)")
-    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat)")
+    p.add_argument("--color", help="colour image file (absolute, or relative to INPUT: a scene "
+                                   "directory's scan/ first, then INPUT itself)")
+    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat), found like --color")
     p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
     p.add_argument("--depth-format", default="auto",
                    choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
@@ -75,6 +78,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--depth-scale", type=float, default=None,
                    help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
+    p.add_argument("--scale", type=float, default=None,
+                   help="metres per input unit (0.001 for a cloud in mm); default: a bare cloud "
+                        "whose extent is not 0.2-50 m is rescaled by a power of ten (noted in "
+                        "report.md, meta.input_scale), a depth scan is refused")
     p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
     p.add_argument("--instance", help="instance id image (16-bit, 0 = none)")
     p.add_argument("--scribbles", help="scribble image: one stroke id/colour per object")
@@ -88,6 +95,58 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="random seed (RANSAC)")
 
 
+#: Accepted ranges of the numeric options (checked before any work).
+CELL_RANGE = (1e-4, 0.1)
+BUDGET_RANGE = (0.01, 86400.0)
+
+
+def _finite(value, flag: str, lo: float, hi: float, what: str, lo_open: bool = False) -> None:
+    import math
+
+    if value is None:
+        return
+    ok = math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi
+    if not ok:
+        raise InputError(f"{flag}: {what}, got {value}")
+
+
+def validate_args(args: argparse.Namespace) -> None:
+    """Every option of ``unseen run`` checked before any work (one line, exit 2)."""
+    from pipeline.constants import MU_RANGE
+    from pipeline.outdir import check_out
+
+    if not str(args.input).strip():
+        raise InputError("INPUT: empty path; give a scene folder, an RGB-D folder or a cloud")
+    if args.seed < 0:
+        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    _finite(getattr(args, "budget", None), "--budget", *BUDGET_RANGE,
+            "must be a positive number of seconds up to a day", lo_open=True)
+    _finite(getattr(args, "mu", None), "--mu", *MU_RANGE,
+            f"must be a friction coefficient in [{MU_RANGE[0]:g}, {MU_RANGE[1]:g}]")
+    _finite(args.cell, "--cell", *CELL_RANGE,
+            f"voxel size as a fraction of the scene diameter, in [{CELL_RANGE[0]:g}, "
+            f"{CELL_RANGE[1]:g}] (default 0.005)")
+    _finite(args.max_depth, "--max-depth", 0.0, 1e4,
+            "must be a positive distance in metres", lo_open=True)
+    _finite(args.depth_scale, "--depth-scale", 0.0, 1e9,
+            "must be a positive number of raw units per metre", lo_open=True)
+    _finite(getattr(args, "scale", None), "--scale", 1e-6, 1e6,
+            "must be metres per input unit in [1e-06, 1e+06] (0.001 for mm)")
+    check_out(args.out)
+
+
+def _source_relative(source: str, input_path: str) -> str:
+    """Where the scan came from, relative to INPUT (not to the working folder): the same
+    input moved elsewhere gives the same bytes."""
+    import os
+
+    src, inp = os.path.abspath(source), os.path.abspath(input_path)
+    if os.path.isdir(inp) and (src == inp or src.startswith(inp + os.sep)):
+        rel = os.path.relpath(src, inp)
+        return Path(inp).name + ("" if rel == "." else "/" + Path(rel).as_posix())
+    return Path(src).name
+
+
 def run_initial(args: argparse.Namespace, progress=None):
     """Load INPUT and run section 4.1: returns (scan_input, arrangement, report dict)."""
     import numpy as np
@@ -95,23 +154,34 @@ def run_initial(args: argparse.Namespace, progress=None):
     from pipeline.fit import CELL_REL
     from pipeline.initial import initial_cuboids
     from pipeline.scan_io import load_scan
+    from pipeline.units import to_metres
 
     t0 = time.perf_counter()
     scan = load_scan(args.input, color=args.color, depth=args.depth, intrinsics=args.intrinsics,
                      depth_format=args.depth_format, depth_scale=args.depth_scale, up=args.up,
                      max_depth=args.max_depth, instance=args.instance, scribbles=args.scribbles)
+    scan, scale, note = to_metres(scan, getattr(args, "scale", None))
     t_load = time.perf_counter() - t0
     rng = np.random.default_rng(args.seed)
     arr, report = initial_cuboids(scan, rng=rng, cell_rel=args.cell or CELL_REL,
                                   edges=not args.no_edges, segmentation=args.segmentation,
                                   progress=progress)
+    meta = dict(arr.meta)
+    if "source" in meta:
+        meta["source"] = _source_relative(str(meta["source"]), str(args.input))
+    meta["input_scale"] = scale
+    meta["mu"] = float(getattr(args, "mu", 0.7))
+    arr = arr.with_(meta=meta)
+    if note:
+        report["notes"] = [note, *report.get("notes", [])]
     report["timings"] = {"load": t_load, **report["timings"]}
     report["timings"]["total"] = float(sum(v for k, v in report["timings"].items() if k != "total"))
     return scan, arr, report
 
 
 def write_initial_outputs(out: Path, scan, arr, report: dict, command: str, seed: int) -> None:
-    """arrangement.json, overlay.png, view.png, report.md."""
+    """arrangement.json, overlay.png, view.png, report.md (into ``out``, an
+    :func:`pipeline.outdir.output_folder`'s temporary folder)."""
     import numpy as np
 
     from pipeline import atomic
@@ -174,23 +244,30 @@ def report_markdown(arr, report: dict, command: str, seed: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    validate_args(args)
     if args.stage == "full":
         from eval.run_full import run_full
 
         code, line = run_full(args, run_initial)
         print(line)
         return code
+    from pipeline.outdir import output_folder
     from pipeline.progress import Progress
 
-    with Progress(None, "unseen run") as bar:
-        scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    write_initial_outputs(out, scan, arr, report, command, args.seed)
+    with output_folder(out, inputs=_inputs(args)) as tmp:
+        with Progress(None, "unseen run") as bar:
+            scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
+        write_initial_outputs(tmp, scan, arr, report, command, args.seed)
     c = report["counts"]
     print(f"{c['cuboids']} cuboids from {c['objects']} objects, {c['walls']} walls, "
           f"{report['timings']['total']:.2f} s -> {out}")
     return 0
+
+
+def _inputs(args: argparse.Namespace) -> list[str]:
+    """Every file or folder the run reads (none may lie inside --out)."""
+    return [v for v in (args.input, args.color, args.depth, args.instance, args.scribbles)
+            if v]
