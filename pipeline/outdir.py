@@ -145,6 +145,7 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            created = False  # the other command's folder: not ours to remove
             raise InputError(f"{flag} {p}: another unseen command is writing this folder now; "
                              "wait for it to finish or choose another folder") from None
         if not created and any(target.iterdir()) and not (target / MANIFEST).is_file():
@@ -153,7 +154,11 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         name, parent = target.name, target.parent
         for stale in parent.glob(f".{name}.tmp-*"):  # left by a killed run; we hold the lock
             shutil.rmtree(stale, ignore_errors=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=parent))
+        try:
+            tmp = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=parent))
+        except OSError as exc:
+            raise InputError(f"{flag} {p}: cannot write beside it in {parent} "
+                             f"({exc.strerror})") from None
         try:
             umask = os.umask(0)
             os.umask(umask)
@@ -165,12 +170,21 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
                 os.rename(target, old / "old")
                 os.rename(tmp, target)
                 tmp = old
-        except BaseException:
-            if created and target.is_dir() and not any(target.iterdir()):
-                with contextlib.suppress(OSError):
-                    target.rmdir()
-            raise
+            created = False
         finally:
             shutil.rmtree(tmp, ignore_errors=True)
     finally:
         os.close(fd)
+        if created and target.is_dir() and not any(target.iterdir()):
+            with contextlib.suppress(OSError):
+                target.rmdir()
+
+
+def out_arg(text: str) -> Path:
+    """``argparse`` type of an ``--out`` option: a path, refusing the empty string (which
+    ``Path("")`` would silently turn into the working folder)."""
+    import argparse
+
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path; give the folder to write, e.g. --out result")
+    return Path(text)

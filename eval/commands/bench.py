@@ -11,6 +11,8 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """\
 Sections are the modules in eval/benchmarks/ (each has TITLE and run(quick) returning
 tables).  The document (machine description, then each section's tables with medians)
@@ -33,7 +35,7 @@ class SectionResult:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--out", type=out_arg, required=True, help="output folder (created)")
     parser.add_argument("--quick", action="store_true", help="small sizes, few repeats")
     parser.add_argument("--only", default=None, metavar="SECTION,...",
                         help="run only these sections (module names in eval/benchmarks)")

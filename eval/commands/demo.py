@@ -12,13 +12,15 @@ import argparse
 import time
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """outputs: OUT/scene (the synthetic scene directory with its ground truth) and
 OUT/result (arrangement.json, scene.xml, scene.urdf, arrangement.glb, overlay.png,
 view.png, report.md).  Exit 0 when the result stands in every check."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("demo_out"),
+    p.add_argument("--out", type=out_arg, default=Path("demo_out"),
                    help="output folder (default: demo_out)")
     p.add_argument("--seed", type=int, default=2, help="scene seed (default 2)")
     p.add_argument("--family", default="demo",

@@ -9,6 +9,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """\
 Suites live in eval/suites/<suite>.py.  Each writes Markdown and CSV tables and plots
 under --out, one JSON record per scene under --out/tasks (a rerun resumes from them),
@@ -38,7 +40,7 @@ def available_suites() -> list[str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     suites = ", ".join(available_suites()) or "(none yet)"
     parser.add_argument("suite", help=f"one of: {suites}")
-    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--out", type=out_arg, required=True, help="output folder (created)")
     parser.add_argument("--seed", type=int, default=0, help="suite seed (default 0)")
     parser.add_argument("--n", type=int, default=None,
                         help="number of scenes/runs (default: the suite's own)")

@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """writes:
   DIR/scene.xml        MJCF for MuJoCo (mujoco.MjModel.from_xml_path)
   DIR/scene.urdf       the whole scene as one URDF tree (free bodies on floating joints)
@@ -25,7 +27,7 @@ and engine weld constraints (MuJoCo equality/weld, PyBullet JOINT_FIXED)."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("arrangement", type=Path, help="arrangement.json to export")
-    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--out", type=out_arg, required=True, help="output folder (created)")
     parser.add_argument("--welds", choices=("exact", "constraint"), default="exact",
                         help="how 'fixed' contacts are modelled (default: exact)")
     parser.add_argument("--mu", type=float, default=None,

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
+
+from pipeline.outdir import out_arg
 
 #: the scene families (same order as ``synth_scenes.registry.FAMILIES``; a test checks it)
 KINDS = ("stack", "counterweight", "bridge", "table", "chair", "shelf", "wall_shelf", "desk",
@@ -31,7 +32,7 @@ Exit 0 written, 1 no valid scene found within --max-attempts, 2 bad input."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("kind", metavar="KIND", help="scene family: " + ", ".join(KINDS))
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="scene directory (created)")
+    parser.add_argument("--out", type=out_arg, required=True, metavar="DIR", help="scene directory (created)")
     parser.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
     parser.add_argument("--views", type=int, default=1, metavar="K", help="camera views (default 1)")
     parser.add_argument("--noise", default="kinect", choices=("kinect", "none"),
