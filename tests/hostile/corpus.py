@@ -42,6 +42,12 @@ CASES: list[tuple[str, list[str], int, str]] = [
     ("check-engine-budget-zero", ["check", S, "--engine-budget", "0"], 2, "--engine-budget"),
     ("check-unknown-engine", ["check", S, "--engine", "bullet"], 2, "--engine"),
     ("check-fixed-5m-apart", ["check", "{D}/fixed_5m_apart.json"], 2, "do not touch"),
+    ("check-engine-over-budget", ["check", S, "--engine", "mujoco", "--engine-budget", "1e-4"],
+     2, "would take about"),
+    ("check-mujoco-cannot-load", ["check", "{D}/grain_on_a_cube.json", "--engine", "mujoco"],
+     2, "mujoco cannot load this scene"),
+    ("check-edges-1e6-apart", ["check", "{D}/dust_on_a_cube.json", "--engine", "all"], 2,
+     "the engines cannot simulate edges from"),
     # ---- export
     ("export-id-nul", ["export", "{D}/id_nul.json", "--out", "{T}/x"], 2, "U+0000"),
     ("export-fixed-5m-apart", ["export", "{D}/fixed_5m_apart.json", "--out", "{T}/x"], 2,
