@@ -127,7 +127,11 @@ def rigid_bodies(arr: Arrangement, welds: str = "exact") -> tuple[list[RigidBody
     InputError
         A contact names an unknown cuboid or support.
     """
+    from pipeline.arrangement_io import check_name
+
     check_welds(welds)
+    for k, c in enumerate(arr.cuboids):  # every exported geom and link is named by its id
+        check_name(c.id, f"cuboids[{k}].id")
     K = len(arr.cuboids)
     sup_ids = list(arr.support_ids)
     node = {**arr.index, **{s: K + j for j, s in enumerate(sup_ids)}}

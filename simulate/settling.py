@@ -252,14 +252,17 @@ class StepClock:
         import time
 
         left = int(n)
+        size = 1  # chunks grow to ``chunk`` steps or a quarter second, whichever is less
         while left > 0:
             if self.t_steps is None:
                 self.t_steps = time.perf_counter()
-            k = min(chunk, left)
+            k = min(size, left)
+            t = time.perf_counter()
             step(k)
             left -= k
             self.done += k
             now = time.perf_counter()
+            size = int(np.clip(0.25 * k / max(now - t, 1e-9), 1, chunk))
             if finite is not None and not finite():
                 return False
             stepping = now - self.t_steps
