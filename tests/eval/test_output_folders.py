@@ -140,3 +140,23 @@ def test_check_takes_mu_from_meta_and_the_flag_wins():
     assert file_mu(arr, None) == 0.25
     assert file_mu(arr, 0.6) == 0.6
     assert file_mu(towers(1), None) == 0.7
+
+
+@pytest.mark.parametrize("argv", [
+    ["run", "{S}", "--out", "{T}/ro/out"],
+    ["export", "{S}", "--out", "{T}/ro/out"],
+    ["synth", "demo", "--out", "{T}/ro/out"],
+    ["demo", "--out", "{T}/ro/out"],
+])
+def test_a_read_only_parent_is_refused_before_any_work(argv, tmp_path, capsys, monkeypatch):
+    """Root may write anywhere, so the read-only folder is simulated through os.access."""
+    src = tmp_path / "a.json"
+    write_arrangement(towers(1), src)
+    (tmp_path / "ro").mkdir()
+    real_access = os.access
+    monkeypatch.setattr("pipeline.outdir.os.access",
+                        lambda p, mode: False if Path(p).name == "ro" else real_access(p, mode))
+    code = main([a.format(S=src, T=tmp_path) for a in argv])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "is not writable" in err[0], err
+    assert list((tmp_path / "ro").iterdir()) == []

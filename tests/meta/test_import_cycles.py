@@ -96,3 +96,4 @@ def test_no_import_cycles():
     cycles = import_cycles(import_graph())
     unexpected = [sorted(c) for c in cycles if c not in ALLOWED_CYCLES]
     assert not unexpected, "import cycles: " + "; ".join(" <-> ".join(c) for c in unexpected)
+
