@@ -183,7 +183,7 @@ def check_engines(arr, mu: float) -> dict:
 
 def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
     """Run and write everything; returns (exit code, one summary line for the terminal)."""
-    from eval.commands.run import _inputs, validate_args
+    from eval.run_checks import inputs, validate_args
     from pipeline.outdir import output_folder
     from pipeline.progress import Progress
 
@@ -192,7 +192,7 @@ def run_full(args: argparse.Namespace, run_initial) -> tuple[int, str]:
     t0 = time.perf_counter()
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    with output_folder(out, inputs=_inputs(args)) as tmp:
+    with output_folder(out, inputs=inputs(args)) as tmp:
         with Progress(None, "unseen run") as bar:
             scan, initial, report0 = run_initial(args, progress=lambda name: bar.update(note=name))
             bar.update(note="search")

@@ -13,8 +13,6 @@ import sys
 import time
 from pathlib import Path
 
-from pipeline.errors import InputError
-
 R = "../shared/data/real"
 EPILOG = f"""\
 inputs:
@@ -93,46 +91,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="voxel size as a fraction of the scene diameter (default 0.005)")
     p.add_argument("--no-edges", action="store_true", help="skip the Canny edge refinement")
     p.add_argument("--seed", type=int, default=0, help="random seed (RANSAC)")
-
-
-#: Accepted ranges of the numeric options (checked before any work).
-CELL_RANGE = (1e-4, 0.1)
-BUDGET_RANGE = (0.01, 86400.0)
-
-
-def _finite(value, flag: str, lo: float, hi: float, what: str, lo_open: bool = False) -> None:
-    import math
-
-    if value is None:
-        return
-    ok = math.isfinite(value) and (value > lo if lo_open else value >= lo) and value <= hi
-    if not ok:
-        raise InputError(f"{flag}: {what}, got {value}")
-
-
-def validate_args(args: argparse.Namespace) -> None:
-    """Every option of ``unseen run`` checked before any work (one line, exit 2)."""
-    from pipeline.constants import MU_RANGE
-    from pipeline.outdir import check_out
-
-    if not str(args.input).strip():
-        raise InputError("INPUT: empty path; give a scene folder, an RGB-D folder or a cloud")
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
-    _finite(getattr(args, "budget", None), "--budget", *BUDGET_RANGE,
-            "must be a positive number of seconds up to a day", lo_open=True)
-    _finite(getattr(args, "mu", None), "--mu", *MU_RANGE,
-            f"must be a friction coefficient in [{MU_RANGE[0]:g}, {MU_RANGE[1]:g}]")
-    _finite(args.cell, "--cell", *CELL_RANGE,
-            f"voxel size as a fraction of the scene diameter, in [{CELL_RANGE[0]:g}, "
-            f"{CELL_RANGE[1]:g}] (default 0.005)")
-    _finite(args.max_depth, "--max-depth", 0.0, 1e4,
-            "must be a positive distance in metres", lo_open=True)
-    _finite(args.depth_scale, "--depth-scale", 0.0, 1e9,
-            "must be a positive number of raw units per metre", lo_open=True)
-    _finite(getattr(args, "scale", None), "--scale", 1e-6, 1e6,
-            "must be metres per input unit in [1e-06, 1e+06] (0.001 for mm)")
-    check_out(args.out)
 
 
 def _source_relative(source: str, input_path: str) -> str:
@@ -244,6 +202,8 @@ def report_markdown(arr, report: dict, command: str, seed: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from eval.run_checks import inputs, validate_args
+
     validate_args(args)
     if args.stage == "full":
         from eval.run_full import run_full
@@ -257,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    with output_folder(out, inputs=_inputs(args)) as tmp:
+    with output_folder(out, inputs=inputs(args)) as tmp:
         with Progress(None, "unseen run") as bar:
             scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
         write_initial_outputs(tmp, scan, arr, report, command, args.seed)
@@ -266,8 +226,3 @@ def run(args: argparse.Namespace) -> int:
           f"{report['timings']['total']:.2f} s -> {out}")
     return 0
 
-
-def _inputs(args: argparse.Namespace) -> list[str]:
-    """Every file or folder the run reads (none may lie inside --out)."""
-    return [v for v in (args.input, args.color, args.depth, args.instance, args.scribbles)
-            if v]
