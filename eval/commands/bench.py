@@ -180,8 +180,10 @@ def plot(results: list[SectionResult], path: Path) -> int:
 def run(args: argparse.Namespace) -> int:
     from pipeline import atomic
     from pipeline.errors import InputError
+    from pipeline.outdir import check_out
     from pipeline.progress import Progress
 
+    check_out(args.out)
     names = section_names()
     if args.only:
         wanted = [s.strip() for s in args.only.split(",") if s.strip()]

@@ -1,6 +1,7 @@
 """``unseen run`` on the demo cloud at other units of length: the contact graph of the
-cloud scaled by 100 (and, in the slow sweep, 0.01 and 0.001) is the one at 1x, and the
-report says the cloud was rescaled."""
+cloud scaled by 100, 0.01 and 0.001 is the one at 1x and the report says the cloud was
+rescaled (full runs, ``-m slow``: about 40 s); by default, the cloud at 1000x is
+rescaled and finds its ground (initial stage, 3 s)."""
 
 from __future__ import annotations
 
@@ -49,12 +50,8 @@ def _same_as_1x(demo_clouds: dict, s: float) -> None:
     assert f"scaled by {1.0 / s:g} to metres" in report
 
 
-def test_100x_cloud_gives_the_1x_contact_graph(demo_clouds, capsys):
-    _same_as_1x(demo_clouds, 100.0)
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("s", [0.01, 0.001])
+@pytest.mark.parametrize("s", [100.0, 0.01, 0.001])
 def test_small_clouds_give_the_1x_contact_graph(demo_clouds, s, capsys):
     _same_as_1x(demo_clouds, s)
 

@@ -102,6 +102,7 @@ CASES: list[tuple[str, list[str], int, str]] = [
     ("synth-out-proc", ["synth", "demo", "--out", "/proc/x"], 2, "/proc"),
     ("synth-n-boxes-huge", ["synth", "stack", "--out", "{T}/s", "--n-boxes", "1000000"], 2,
      "--n-boxes"),
+    ("bench-out-proc", ["bench", "--out", "/proc/x", "--quick"], 2, "/proc"),
     # ---- score
     ("score-dev-zero", ["score", "{ZERO}", S], 2, "is a device"),
     ("score-fifo-truth", ["score", S, "{FIFO}"], 2, "is a named pipe"),
