@@ -34,6 +34,14 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 }
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (exit 2), not usage + error."""
+
+    def error(self, message: str):  # noqa: D401 - argparse's signature
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} "
+                     f"(see {self.prog} --help)\n")
+
+
 def _top_parser() -> argparse.ArgumentParser:
     lines = [f"  {name:<8}{help_}" for name, (_, help_, _) in COMMANDS.items()]
     examples = [f"  {ex}" for (_, _, ex) in COMMANDS.values()]
@@ -61,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     module_name, help_, example = COMMANDS[name]
     module = importlib.import_module(module_name)
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog=f"unseen {name}", description=help_[0].upper() + help_[1:] + ".",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=f"example:\n  {example}" + (("\n\n" + module.EPILOG) if hasattr(module, "EPILOG") else ""),
@@ -73,7 +81,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return int(module.run(args) or 0)
     except InputError as exc:
-        print(f"unseen {name}: error: {exc}", file=sys.stderr)
+        print(f"unseen {name}: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # the file system refused (read-only, full, gone): say where
+        where = f" {exc.filename}" if exc.filename else ""
+        print(f"unseen {name}: error: cannot write or read{where}: "
+              f"{exc.strerror or exc.__class__.__name__}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"unseen {name}: interrupted", file=sys.stderr)

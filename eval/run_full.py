@@ -17,8 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from pipeline.errors import InputError
-
 FIXED_COLOUR = (230, 30, 30)
 TOUCH_COLOUR = (40, 90, 255)
 HALLUCINATED_COLOUR = (230, 0, 230)
@@ -50,7 +48,10 @@ def contact_segments(arr) -> list[tuple[np.ndarray, np.ndarray, str]]:
 
 
 def write_full_outputs(out: Path, scan, initial, result, report0: dict, engines: dict | None,
-                       command: str, seed: int) -> None:
+                       command: str, seed: int, mu: float | None = None) -> None:
+    """Every output of a full run into ``out`` (an :func:`pipeline.outdir.output_folder`'s
+    temporary folder).  ``mu`` (default: the arrangement's ``meta.mu``, else 0.7) goes into
+    scene.xml and scene.urdf."""
     from pipeline import atomic
     from pipeline.arrangement_io import write_arrangement
     from pipeline.camera import Intrinsics, look_at
@@ -61,7 +62,9 @@ def write_full_outputs(out: Path, scan, initial, result, report0: dict, engines:
     out.mkdir(parents=True, exist_ok=True)
     write_arrangement(final, out / "arrangement.json")
     write_arrangement(initial, out / "initial.json")
-    export_all(final, out)
+    if mu is None:
+        mu = final.meta.get("mu")
+    export_all(final, out, mu=mu)
 
     world, labels = report0["world"], report0["labels"]
     T = np.asarray(final.meta["camera_pose"], float)
@@ -115,6 +118,8 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
              f"- result: {len(final.cuboids)} cuboids, {len(final.contacts)} contacts "
              f"({sum(c.type == 'fixed' for c in final.contacts)} fixed), "
              f"**{'stable' if rep.stable else 'UNSTABLE'}** (E = {rep.energy:.3g})", ""]
+    if report0.get("notes"):
+        lines += ["Notes: " + "; ".join(report0["notes"]), ""]
     if rep.unstable:
         lines += [f"Even with every candidate contact fixed, these boxes cannot be held: "
                   f"{', '.join(rep.unstable)} (a support was probably not seen); "
@@ -173,29 +178,28 @@ def check_engines(arr, mu: float) -> dict:
 def run_full(args: argparse.Namespace, config) -> tuple[int, str]:
     """Run and write everything (``config``: the :class:`pipeline.run.RunConfig` of
     ``args``); returns (exit code, one summary line for the terminal)."""
+    from eval.run_checks import inputs, validate_args
+    from pipeline.outdir import output_folder
     from pipeline.progress import Progress
-
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
-    if not args.budget > 0:
-        raise InputError(f"--budget: must be a positive number of seconds, got {args.budget}")
     from pipeline.run import run_scan
 
+    validate_args(args)
+    out = Path(args.out)
     t0 = time.perf_counter()
-    with Progress(None, "unseen run") as bar:
-        result = run_scan(args.input, config,
-                          progress=lambda name: bar.update(note=name),
-                          search_progress=lambda done, total: bar.update(
-                              note=f"group {done}/{total}"))
-        scan, initial, report0 = result.scan, result.initial, result.initial_report
-        engines = None
-        if args.check_engines:
-            bar.update(note="engines")
-            engines = check_engines(result.arrangement, args.mu)
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    write_full_outputs(out, scan, initial, result, report0, engines, command, args.seed)
+    with output_folder(out, inputs=inputs(args)) as tmp:
+        with Progress(None, "unseen run") as bar:
+            result = run_scan(args.input, config, progress=lambda name: bar.update(note=name),
+                              search_progress=lambda done, total: bar.update(
+                                  note=f"group {done}/{total}"))
+            scan, initial, report0 = result.scan, result.initial, result.initial_report
+            engines = None
+            if args.check_engines:
+                bar.update(note="engines")
+                engines = check_engines(result.arrangement, args.mu)
+        write_full_outputs(tmp, scan, initial, result, report0, engines, command, args.seed,
+                           mu=args.mu)
     final = result.arrangement
     n_fixed = sum(c.type == "fixed" for c in final.contacts)
     verdict = "stable" if result.report.stable else "UNSTABLE (best effort)"

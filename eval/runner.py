@@ -251,7 +251,7 @@ def run_tasks(tasks: Iterable[Task], out: str | Path, *, seed: int = 0, workers:
     if dask:
         from distributed import Client
 
-        client = Client(dask)
+        client = Client(dask, timeout="10s")
         executor: cf.Executor = client.get_executor(pure=False)
         backend = f"dask {dask}"
     elif workers > 1 and len(pending) > 1:

@@ -19,7 +19,13 @@ from typing import Any
 import numpy as np
 
 from . import atomic
-from .constants import ROTATION_TOL
+from .constants import (
+    DENSITY_RANGE,
+    MAX_COORDINATE,
+    MAX_CUBOIDS,
+    ROTATION_TOL,
+    SIZE_RANGE,
+)
 from .errors import InputError
 from .model import (
     CONTACT_TYPES,
@@ -47,19 +53,10 @@ def read_arrangement(path: str | os.PathLike) -> Arrangement:
     InputError
         One line naming the file and the bad field.
     """
+    from .safe_read import load_json
+
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise InputError(f"{path}: is a directory, expected an arrangement.json file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read ({exc.__class__.__name__}: {exc})") from None
-    try:
-        data = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise InputError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    data = load_json(path, "arrangement.json file")
     try:
         return arrangement_from_dict(data)
     except InputError as exc:
@@ -76,12 +73,46 @@ def _vector(value: Any, field: str, n: int = 3, positive: bool = False) -> np.nd
         raise _fail(field, what)
     if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
         raise _fail(field, what)
-    arr = np.array(value, dtype=float)
+    try:
+        arr = np.array(value, dtype=float)
+    except OverflowError:
+        arr = np.full(n, np.inf)
     if not np.all(np.isfinite(arr)):
         raise _fail(field, f"{what} (found NaN or infinity)")
     if positive and not np.all(arr > 0):
         raise _fail(field, what)
     return arr
+
+
+def _size(value: Any, field: str) -> np.ndarray:
+    size = _vector(value, field, positive=True)
+    lo, hi = SIZE_RANGE
+    if size.min() < lo or size.max() > hi:
+        raise _fail(field, f"edges must lie in [{lo:g}, {hi:g}] m, got "
+                           f"{' '.join(f'{v:.3g}' for v in size)}")
+    return size
+
+
+def _coordinates(value: Any, field: str) -> np.ndarray:
+    v = _vector(value, field)
+    if np.abs(v).max() > MAX_COORDINATE:
+        raise _fail(field, f"coordinates must lie within +-{MAX_COORDINATE:g} m, got "
+                           f"{' '.join(f'{x:.3g}' for x in v)}")
+    return v
+
+
+#: Characters refused in ids and names: C0/C1 controls, and what XML 1.0 cannot hold
+#: (lone surrogates, U+FFFE/U+FFFF).  Exported MJCF/URDF name every geom by its id.
+_BAD_NAME_CHARS = re.compile("[\x00-\x1f\x7f-\x9f\ud800-\udfff\ufffe\uffff]")
+
+
+def check_name(value: str, field: str) -> str:
+    """``value`` when it has no control or XML-illegal character; else InputError."""
+    m = _BAD_NAME_CHARS.search(value)
+    if m:
+        raise _fail(field, f"contains the control character U+{ord(m.group()):04X} at "
+                           f"position {m.start()}; use printable characters")
+    return value
 
 
 def _rotation(value: Any, field: str) -> np.ndarray:
@@ -100,11 +131,12 @@ def _rotation(value: Any, field: str) -> np.ndarray:
 def _string(value: Any, field: str) -> str:
     if not isinstance(value, str) or not value:
         raise _fail(field, "must be a non-empty string")
-    return value
+    return check_name(value, field)
 
 
 def _number(value: Any, field: str, positive: bool = False) -> float:
-    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or \
+            not math.isfinite(float(value)):
         raise _fail(field, "must be a finite number")
     if positive and value <= 0:
         raise _fail(field, "must be a positive number")
@@ -136,7 +168,7 @@ def arrangement_from_dict(data: Any) -> Arrangement:
         sid = _string(s.get("id"), f"{f}.id")
         if not is_support_id(sid):
             raise _fail(f"{f}.id", f"{sid!r} must be 'ground' or 'wall:<k>'")
-        point = _vector(s.get("point"), f"{f}.point")
+        point = _coordinates(s.get("point"), f"{f}.point")
         normal = _vector(s.get("normal"), f"{f}.normal")
         if np.linalg.norm(normal) < 1e-9:
             raise _fail(f"{f}.normal", "must be a non-zero vector")
@@ -145,6 +177,8 @@ def arrangement_from_dict(data: Any) -> Arrangement:
     raw_cuboids = data.get("cuboids")
     if not isinstance(raw_cuboids, list):
         raise _fail("cuboids", "must be a list")
+    if len(raw_cuboids) > MAX_CUBOIDS:
+        raise _fail("cuboids", f"{len(raw_cuboids)} cuboids; at most {MAX_CUBOIDS} are supported")
     cuboids: list[Cuboid] = []
     for i, c in enumerate(raw_cuboids):
         f = f"cuboids[{i}]"
@@ -153,10 +187,13 @@ def arrangement_from_dict(data: Any) -> Arrangement:
         cid = _string(c.get("id"), f"{f}.id")
         if is_support_id(cid):
             raise _fail(f"{f}.id", f"{cid!r} is reserved for supports")
-        center = _vector(c.get("center"), f"{f}.center")
+        center = _coordinates(c.get("center"), f"{f}.center")
         rotation = _rotation(c.get("rotation"), f"{f}.rotation")
-        size = _vector(c.get("size"), f"{f}.size", positive=True)
+        size = _size(c.get("size"), f"{f}.size")
         density = _number(c.get("density", 1000.0), f"{f}.density", positive=True)
+        if not DENSITY_RANGE[0] <= density <= DENSITY_RANGE[1]:
+            raise _fail(f"{f}.density", f"must lie in [{DENSITY_RANGE[0]:g}, "
+                                        f"{DENSITY_RANGE[1]:g}] kg/m^3, got {density:.3g}")
         obj = c.get("object")
         if obj is not None:
             obj = _string(obj, f"{f}.object")
@@ -165,7 +202,7 @@ def arrangement_from_dict(data: Any) -> Arrangement:
             o = c["observed"]
             if not isinstance(o, dict):
                 raise _fail(f"{f}.observed", "must be an object with center and size")
-            observed = ObservedBox(_vector(o.get("center"), f"{f}.observed.center"),
+            observed = ObservedBox(_coordinates(o.get("center"), f"{f}.observed.center"),
                                    _vector(o.get("size"), f"{f}.observed.size", positive=True))
         extra = {k: v for k, v in c.items() if k not in _CUBOID_KEYS}
         cuboids.append(Cuboid(cid, center, rotation, size, density, obj, observed, extra))

@@ -72,14 +72,13 @@ class Intrinsics:
 
 
 def read_intrinsics(path: str | os.PathLike) -> Intrinsics:
+    from .safe_read import load_json, regular_file
+
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
+    if not path.exists():
         raise InputError(f"{path}: no such file (intrinsics.json with width height fx fy cx cy "
-                         "is required)") from None
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read intrinsics ({exc})") from None
+                         "is required)")
+    data = load_json(regular_file(path, "intrinsics file"), "intrinsics file", limit=2**20)
     return Intrinsics.from_json(data, str(path))
 
 
@@ -90,17 +89,16 @@ def write_intrinsics(intr: Intrinsics, path: str | os.PathLike) -> None:
 def read_pose(path: str | os.PathLike) -> np.ndarray:
     """Read a 4x4 camera-to-world matrix (a JSON list of 4 rows, ``{"T_world_cam": ...}``,
     or an ``arrangement.json`` of an earlier run: its ``meta.camera_pose``)."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read camera pose ({exc})") from None
+    from .safe_read import load_json
+
+    data = load_json(path, "camera pose file", limit=2**20)
     if isinstance(data, dict):
         meta = data.get("meta") if isinstance(data.get("meta"), dict) else {}
         data = data.get("T_world_cam", data.get("camera_pose", meta.get("camera_pose")))
-    T = np.array(data, dtype=float) if isinstance(data, list) else None
+    try:
+        T = np.array(data, dtype=float) if isinstance(data, list) else None
+    except (ValueError, TypeError, OverflowError):
+        T = None
     if T is None or T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise InputError(f"{path}: camera pose must be a 4x4 list of numbers (camera-to-world)")
     R = T[:3, :3]

@@ -51,3 +51,21 @@ SIDE_CONTACT_MAX_NZ = 0.2588190451025208  # sin(15 degrees)
 
 #: Orthonormality tolerance for rotation matrices read from files.
 ROTATION_TOL = 1e-6
+
+# ---------------------------------------------------------------- accepted input ranges
+# An arrangement file outside these ranges is refused when read (one line, exit 2): the
+# analytic check is scale free, but products of lengths and densities must stay far
+# from float overflow/underflow (a 1e300 m box has an infinite volume), and the engines
+# simulate in a rescaled frame (``simulate.engines``) that needs finite masses.
+
+#: Smallest and largest accepted cuboid edge, metres (1 micrometre to 1000 km).
+SIZE_RANGE = (1e-6, 1e6)
+#: Largest accepted |coordinate| of a cuboid centre or a support point, metres.
+MAX_COORDINATE = 1e7
+#: Smallest and largest accepted density, kg/m^3 (below any gas at room pressure is
+#: 0.01; osmium, the densest element, is 22,590).
+DENSITY_RANGE = (1e-2, 1e5)
+#: Most cuboids in one arrangement file (a 2,000-brick wall checks in about a second).
+MAX_CUBOIDS = 20_000
+#: Accepted friction coefficients (``--mu``): 0 is frictionless, 10 is far beyond rubber.
+MU_RANGE = (0.0, 10.0)

@@ -38,6 +38,7 @@ class LoadOptions:
     scribbles: str | None = None
     floor_height: float | None = None
     pose: str | None = None
+    scale: float | None = None  #: metres per input unit (None: found from the extent)
 
 
 @dataclass(frozen=True)
@@ -112,18 +113,44 @@ def initial(scan, config: RunConfig | None = None, progress=None) -> tuple[Arran
                            progress=progress)
 
 
+def source_relative(source: str, input_path: str) -> str:
+    """Where the scan came from, relative to INPUT (not to the working folder): the same
+    input moved elsewhere gives the same bytes."""
+    src, inp = os.path.abspath(source), os.path.abspath(input_path)
+    if os.path.isdir(inp) and (src == inp or src.startswith(inp + os.sep)):
+        rel = os.path.relpath(src, inp)
+        return os.path.basename(inp) + ("" if rel == "." else "/" + rel.replace(os.sep, "/"))
+    return os.path.basename(src)
+
+
 def run_scan(scan, config: RunConfig | None = None, progress=None,
              search_progress=None) -> Result:
     """Run the pipeline on ``scan`` (a loaded scan, or a path read with ``config.load``).
 
-    ``progress(name)`` hears each step of section 4.1; ``search_progress(done, total)``
-    each group the search finishes."""
+    The scan is first brought to metres (:func:`pipeline.units.to_metres`: a bare cloud
+    whose extent no indoor scene has is rescaled, with a note; ``config.load.scale`` says
+    it exactly).  ``meta`` records the input's scale, the friction coefficient and where
+    the scan came from, relative to the input.  ``progress(name)`` hears each step of
+    section 4.1; ``search_progress(done, total)`` each group the search finishes."""
+    from .units import to_metres
+
     config = config or RunConfig()
     t0 = time.perf_counter()
+    path = None
     if isinstance(scan, (str, os.PathLike)):
+        path = os.fspath(scan)
         scan = load(scan, config.load)
+    scan, scale, note = to_metres(scan, config.load.scale)
     t_load = time.perf_counter() - t0
     arr, rep = initial(scan, config, progress)
+    meta = dict(arr.meta)
+    if path is not None and "source" in meta:
+        meta["source"] = source_relative(str(meta["source"]), path)
+    meta["input_scale"] = scale
+    meta["mu"] = float(config.imagine.mu)
+    arr = arr.with_(meta=meta)
+    if note:
+        rep["notes"] = [note, *rep.get("notes", [])]
     rep["timings"] = {"load": t_load, **rep["timings"]}
     rep["timings"]["total"] = float(sum(v for k, v in rep["timings"].items() if k != "total"))
     evidence = Evidence.from_scan(scan, rep.get("pose"))

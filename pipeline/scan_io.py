@@ -25,7 +25,6 @@ given (or Kinect default) intrinsics, so overlays and visibility tests work on t
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import struct
@@ -36,9 +35,12 @@ import numpy as np
 
 from .camera import Intrinsics, backproject, read_intrinsics, read_pose, transform
 from .errors import InputError
+from .safe_read import load_json, read_bytes, regular_file
 
 #: Clouds larger than this are voxel-downsampled right after loading.
 MAX_POINTS = 2_000_000
+#: Largest point-cloud or depth file read, bytes (45 M points of 12 bytes).
+MAX_CLOUD_BYTES = 512 * 2**20
 
 DEPTH_FORMATS = ("auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat")
 
@@ -114,8 +116,7 @@ class ScanInput:
 def _imread(path: Path, what: str, flags: int | None = None) -> np.ndarray:
     import cv2
 
-    if not path.is_file():
-        raise InputError(f"{path}: no such {what} file")
+    regular_file(path, f"{what} image")
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED if flags is None else flags)
     if img is None or img.size == 0:
         raise InputError(f"{path}: cannot read the {what} image (not a PNG/JPEG/PPM/PGM?)")
@@ -179,10 +180,7 @@ def read_depth(path: str | os.PathLike, depth_format: str = "auto",
 
 
 def _read_dat(path: Path) -> np.ndarray:
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    data = read_bytes(path, MAX_CLOUD_BYTES, "depth file")
     if len(data) < 8:
         raise InputError(f"{path}: too short for a float32 depth .dat (int32 rows, cols, floats)")
     rows, cols = struct.unpack("<ii", data[:8])
@@ -230,6 +228,9 @@ def from_rgbd(color: np.ndarray | None, depth: np.ndarray, intr: Intrinsics, *,
                              f"is {W}x{H}")
     d = np.where(np.isfinite(depth), depth, 0.0)
     if max_depth is not None:
+        if np.any(d > 0) and not np.any((d > 0) & (d <= max_depth)):
+            raise InputError(f"{source}: no depth reading within --max-depth {max_depth:g} m "
+                             f"(the nearest is {float(d[d > 0].min()):.3g} m); raise --max-depth")
         d = np.where(d > max_depth, 0.0, d)
     pts, pix = backproject(d, intr)
     if len(pts) == 0:
@@ -253,10 +254,7 @@ _PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short":
 def read_ply(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Vertex properties of a PLY (ascii / binary little / big endian) as ``name -> (n,)``."""
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    data = read_bytes(path, MAX_CLOUD_BYTES, "point cloud")
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise InputError(f"{path}: not a PLY file (no 'ply' magic / end_header)")
@@ -270,7 +268,12 @@ def read_ply(path: str | os.PathLike) -> dict[str, np.ndarray]:
         if tok[0] == "format":
             fmt = tok[1]
         elif tok[0] == "element":
-            current = [tok[1], int(tok[2]), []]
+            try:
+                current = [tok[1], int(tok[2]), []]
+            except (IndexError, ValueError):
+                raise InputError(f"{path}: malformed PLY element line {line!r}") from None
+            if current[1] < 0:
+                raise InputError(f"{path}: negative PLY element count {current[1]}")
             elements.append(current)
         elif tok[0] == "property" and current is not None:
             if tok[1] == "list":
@@ -284,6 +287,11 @@ def read_ply(path: str | os.PathLike) -> dict[str, np.ndarray]:
     if not elements or elements[0][0] != "vertex":
         raise InputError(f"{path}: PLY has no leading 'vertex' element")
     name, n, props = elements[0]
+    if not props:
+        raise InputError(f"{path}: PLY vertices have no properties")
+    if n * len(props) * (1 if fmt != "ascii" else 2) > len(data) - body:
+        raise InputError(f"{path}: PLY header claims {n} vertices but the file is only "
+                         f"{len(data)} bytes; truncated or corrupt")
     if fmt == "ascii":
         text = data[body:].decode("ascii", "replace").split("\n")[:n]
         try:
@@ -348,10 +356,7 @@ def read_pcd(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], int, int]:
     width, height : int (height > 1 means an organised cloud)
     """
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read ({exc.strerror})") from None
+    data = read_bytes(path, MAX_CLOUD_BYTES, "point cloud")
     hdr: dict[str, list[str]] = {}
     pos = 0
     while True:
@@ -376,8 +381,29 @@ def read_pcd(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], int, int]:
         mode = hdr["DATA"][0].lower()
     except (KeyError, ValueError, IndexError):
         raise InputError(f"{path}: malformed PCD header (FIELDS/SIZE/TYPE/WIDTH/DATA)") from None
+    for key, vals in (("SIZE", sizes), ("TYPE", types), ("COUNT", counts)):
+        if len(vals) != len(names):
+            raise InputError(f"{path}: PCD header {key} has {len(vals)} entries but FIELDS has "
+                             f"{len(names)}; every field needs one")
+    valid = {"F": (4, 8), "U": (1, 2, 4, 8), "I": (1, 2, 4, 8)}
+    for nm, t, sz, c in zip(names, types, sizes, counts, strict=True):
+        if t.upper() not in valid or sz not in valid[t.upper()] or not 1 <= c <= 1024:
+            raise InputError(f"{path}: PCD field {nm!r} has TYPE {t} SIZE {sz} COUNT {c}; "
+                             "expected F 4/8, U or I 1/2/4/8, COUNT 1-1024")
+    if width < 1 or height < 1 or npts != width * height:
+        raise InputError(f"{path}: PCD header says WIDTH {width} x HEIGHT {height} but POINTS "
+                         f"{npts}; they must agree")
     dts = [np.dtype({"F": "f", "U": "u", "I": "i"}[t.upper()] + str(s)).newbyteorder("<")
            for t, s in zip(types, sizes, strict=True)]
+    point_bytes = sum(dt.itemsize * c for dt, c in zip(dts, counts, strict=True))
+    body = len(data) - pos
+    # every point takes at least point_bytes (binary), 2 bytes per value (ascii), and LZF
+    # packs at most 88 bytes into 3: refuse a count the file cannot hold before allocating
+    least = {"binary": npts * point_bytes, "ascii": 2 * npts * sum(counts),
+             "binary_compressed": npts * point_bytes // 90}.get(mode, 0)
+    if least > body:
+        raise InputError(f"{path}: PCD header claims {npts} points ({npts * point_bytes} bytes) "
+                         f"but the file holds {body} bytes of data; truncated or corrupt")
     fields: dict[str, np.ndarray] = {}
     if mode == "ascii":
         txt = data[pos:].decode("ascii", "replace").split()
@@ -400,7 +426,13 @@ def read_pcd(path: str | os.PathLike) -> tuple[dict[str, np.ndarray], int, int]:
         rec = np.frombuffer(data, dtype=rec_dt, count=npts, offset=pos)
         fields = {nm: np.array(rec[nm]) for nm in names}
     elif mode == "binary_compressed":
+        if body < 8:
+            raise InputError(f"{path}: truncated binary_compressed PCD (no size words)")
         csize, usize = struct.unpack("<II", data[pos:pos + 8])
+        if usize != npts * point_bytes or csize > body - 8 or usize > 90 * csize + 64:
+            raise InputError(f"{path}: binary_compressed PCD sizes ({csize} compressed, {usize} "
+                             f"uncompressed) do not fit {npts} points of {point_bytes} bytes "
+                             f"in a file of {len(data)} bytes; corrupt")
         try:
             raw = lzf_decompress(data[pos + 8:pos + 8 + csize], usize)
         except (ValueError, IndexError):
@@ -432,9 +464,7 @@ def load_cloud(path: str | os.PathLike, *, intrinsics: str | None = None,
     (mOSD: 10); 0 means auto (10 when labels reach 20 or more and come in decades, as in
     mOSD, else the label itself).
     """
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"{path}: no such file")
+    path = regular_file(path, "point cloud")
     suffix = path.suffix.lower()
     colors = inst = None
     width = height = 1
@@ -570,24 +600,36 @@ def _load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str 
     up_vec = parse_up(up) if isinstance(up, str) else (None if up is None else np.asarray(up, float))
     if not path.exists():
         raise InputError(f"{path}: no such file or folder")
+    if not path.is_dir():
+        regular_file(path, "input")
     if path.is_file():
         if path.suffix.lower() in (".ply", ".pcd", ".npz"):
             return load_cloud(path, intrinsics=intrinsics, up=up_vec)
         # a single depth image / .dat file: its folder is the frame folder
         depth = str(path) if depth is None else depth
         path = path.parent
-    folder = path / "scan" if (path / "scan").is_dir() and depth is None else path
+    folder = path / "scan" if (path / "scan").is_dir() else path
 
-    def resolve(name: str | None, default: str | None) -> Path | None:
+    def resolve(name: str | None, default: str | None, flag: str = "") -> Path | None:
+        """A file named by an option: absolute, or relative to INPUT (its scan/ first),
+        or to the working folder; the defaults are looked up in the frame folder only."""
         if name is None:
             if default is None:
                 return None
             p = folder / default
             return p if p.exists() else None
         p = Path(name)
-        return p if p.is_absolute() or p.exists() else folder / name
+        if p.is_absolute():
+            return p
+        for base in dict.fromkeys((folder, path)):
+            if (base / p).exists():
+                return base / p
+        if p.exists():
+            return p
+        raise InputError(f"{flag} {name}: no such file in {folder}"
+                         + (f", {path}" if folder != path else "") + " or the working folder")
 
-    depth_p = resolve(depth, "depth.png")
+    depth_p = resolve(depth, "depth.png", "--depth")
     if depth_p is None and depth is None and (folder / "view0" / "depth.png").is_file():
         return load_views(folder, color=color, intrinsics=intrinsics, depth_format=depth_format,
                           depth_scale=depth_scale, up=up, max_depth=max_depth, instance=instance)
@@ -610,7 +652,7 @@ def _load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str 
         max_depth = preset.get("max_depth")
     d = read_depth(depth_p, depth_format, depth_scale)
     H, W = d.shape
-    color_p = resolve(color, "color.png")
+    color_p = resolve(color, "color.png", "--color")
     img = read_color(color_p) if color_p is not None else None
     if intrinsics is not None:
         intr = parse_intrinsics(intrinsics, W, H)
@@ -620,11 +662,11 @@ def _load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str 
         raise InputError(f"{folder}: intrinsics.json missing; give --intrinsics fx,fy,cx,cy "
                          "(Kinect v1 default: 525,525,319.5,239.5)")
     pose = read_pose(folder / "camera_pose.json") if (folder / "camera_pose.json").exists() else None
-    inst_p = resolve(instance, "instance.png")
+    inst_p = resolve(instance, "instance.png", "--instance")
     inst_img = _imread(inst_p, "instance").astype(np.int64) if inst_p is not None else None
     if inst_img is not None and inst_img.ndim == 3:
         raise InputError(f"{inst_p}: instance image must be single-channel ids")
-    scr_p = resolve(scribbles, "scribbles.png")
+    scr_p = resolve(scribbles, "scribbles.png", "--scribbles")
     scr = None
     if scr_p is not None:
         s = _imread(scr_p, "scribbles")
@@ -731,12 +773,12 @@ def known_layout(depth: Path) -> dict:
         ann = folder / "test_annotations.json"
         if ann.is_file():
             try:
-                files = json.loads(ann.read_text()).get("files", [])
+                files = load_json(ann).get("files", [])
                 entry = next(f for f in files if str(f.get("depth", "")).endswith(name))
                 out["intrinsics"] = ",".join(str(float(v)) for v in entry["cam_in"])
                 out["depth_scale"] = float(entry.get("depth_scale", 1000.0))
             except (OSError, ValueError, StopIteration, KeyError, TypeError, AttributeError):
-                pass
+                pass  # InputError is a ValueError: a broken annotation file gives no defaults
         return out
     m = re.fullmatch(r"(NYU|TUM|SUN)_depth\.(pgm|png)", name)
     if m:
@@ -784,7 +826,4 @@ def parse_up(text: str) -> np.ndarray:
 
 
 def read_json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f"{path}: cannot read JSON ({exc})") from None
+    return load_json(path)

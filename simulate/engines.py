@@ -51,147 +51,40 @@ range is the shared 2-core machine's load).  At 10 cm, 1 ms (MuJoCo) and 1/960 s
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import replace as dataclass_replace
 
 import numpy as np
 
-from pipeline.constants import DEFAULT_MU, GRAVITY
+from pipeline.constants import DEFAULT_MU
 from pipeline.errors import InputError
 from pipeline.model import Arrangement
 
+from .settling import (  # noqa: F401 - re-exported: the engines' common API
+    BLOWUP_REL,
+    DRIFT_REL,
+    DRIFT_WINDOW,
+    ROTATION_DEG,
+    TRANSLATION_REL,
+    BodyMotion,
+    SettleResult,
+    body_sizes,
+    default_duration,
+    judge,
+    rotation_angles_deg,
+)
+
 ENGINES = ("mujoco", "pybullet")
-
-#: A cuboid that moved more than this fraction of its body's size is unstable.
-TRANSLATION_REL = 0.02
-#: A cuboid that turned more than this many degrees is unstable.
-ROTATION_DEG = 2.0
-#: A cuboid that moved more than this fraction of its body's size during the last quarter
-#: of the run is still moving, and unstable.
-DRIFT_REL = 0.005
-#: The judged window: the last quarter of the simulated time.
-DRIFT_WINDOW = 0.25
-#: Positions beyond this many scene extents (or NaN) mean the simulation blew up.
-BLOWUP_REL = 100.0
-
-
-@dataclass(frozen=True)
-class BodyMotion:
-    """How far one cuboid moved while settling."""
-
-    id: str  #: cuboid id (every cuboid is reported, fused ones too)
-    translation: float  #: metres, |final centre - initial centre|
-    rotation_deg: float  #: degrees, angle of R_final R_initial^T
-    stable: bool
-
-
-@dataclass(frozen=True)
-class SettleResult:
-    """The outcome of settling an arrangement in one engine.
-
-    Attributes
-    ----------
-    engine : str
-        ``"mujoco"`` or ``"pybullet"``.
-    stable : bool
-        Every cuboid stayed put (see the module docstring for the thresholds).
-    bodies : tuple of BodyMotion
-        One per cuboid, in the arrangement's order.
-    centers : (K, 3) float
-        Final cuboid centres.
-    rotations : (K, 3, 3) float
-        Final cuboid rotations.
-    status : str
-        ``"ok"`` or ``"blew_up"``.
-    sim_time : float
-        Simulated seconds.
-    wall_time : float
-        Wall-clock seconds (load + simulate).
-    drift : (K,) float
-        How far every cuboid's centre moved during the last ``DRIFT_WINDOW`` of the run, m.
-    """
-
-    engine: str
-    stable: bool
-    bodies: tuple[BodyMotion, ...]
-    centers: np.ndarray
-    rotations: np.ndarray
-    status: str
-    sim_time: float
-    wall_time: float
-    drift: np.ndarray | None = None
-    welds: str = "exact"
-
-    def to_json(self) -> dict:
-        """A JSON-ready dict (the ``engines.<name>`` record of ``unseen check --json``)."""
-        return {
-            "engine": self.engine,
-            "stable": bool(self.stable),
-            "status": self.status,
-            "bodies": [{"id": b.id, "stable": bool(b.stable),
-                        "translation": float(b.translation),
-                        "rotation_deg": float(b.rotation_deg)} for b in self.bodies],
-            "sim_time": float(self.sim_time),
-            "wall_time": float(self.wall_time),
-            "welds": self.welds,
-            "thresholds": {"translation_rel": TRANSLATION_REL, "rotation_deg": ROTATION_DEG,
-                           "drift_rel": DRIFT_REL, "drift_window": DRIFT_WINDOW},
-        }
-
-
-def default_duration(arr: Arrangement) -> float:
-    """Simulated seconds: ``clip(10 sqrt(L / g), 0.5, 4)`` with L the largest box edge.
-
-    A box overhanging 51 % tips with a time constant of order ``sqrt(L / g)``; ten of
-    them let it turn well past ``ROTATION_DEG`` (measured: a 1 m cube at 51 % turns
-    > 10 degrees in 3.2 s).
-    """
-    L = float(arr.sizes.max()) if arr.cuboids else 1.0
-    return float(np.clip(10.0 * np.sqrt(L / GRAVITY), 0.5, 4.0))
-
-
-def body_sizes(arr: Arrangement, members_of: list[np.ndarray]) -> np.ndarray:
-    """(K,) the size of every cuboid's rigid body: the largest edge among its members."""
-    out = np.zeros(len(arr.cuboids))
-    edge = arr.sizes.max(axis=1) if arr.cuboids else np.zeros(0)
-    for m in members_of:
-        out[m] = edge[m].max()
-    return out
-
-
-def rotation_angles_deg(R0: np.ndarray, R1: np.ndarray) -> np.ndarray:
-    """(K,) angle in degrees of ``R1[k] R0[k]^T`` for ``R0, R1 (K, 3, 3)``."""
-    tr = np.einsum("kij,kij->k", R1, R0)  # trace(R1 R0^T)
-    return np.degrees(np.arccos(np.clip((tr - 1.0) / 2.0, -1.0, 1.0)))
-
-
-def judge(arr: Arrangement, engine: str, centers: np.ndarray, rotations: np.ndarray,
-          drift: np.ndarray, members_of: list[np.ndarray], sim_time: float,
-          wall_time: float, welds: str = "exact") -> SettleResult:
-    """Turn final poses into per-cuboid motions and the verdict (shared by the engines)."""
-    from .export import scene_extent
-
-    c0, R0 = np.asarray(arr.centers), np.asarray(arr.rotations)
-    centers = np.asarray(centers, float)
-    rotations = np.asarray(rotations, float)
-    drift = np.asarray(drift, float)
-    finite = bool(np.all(np.isfinite(centers)) and np.all(np.isfinite(rotations)))
-    trans = np.linalg.norm(centers - c0, axis=1) if finite else np.full(len(c0), np.inf)
-    blew = (not finite) or bool(np.any(trans > BLOWUP_REL * scene_extent(arr)))
-    rot = rotation_angles_deg(R0, rotations) if finite else np.full(len(c0), np.inf)
-    size = body_sizes(arr, members_of)
-    ok = (trans < TRANSLATION_REL * size) & (rot < ROTATION_DEG) & (drift < DRIFT_REL * size)
-    bodies = tuple(BodyMotion(c.id, float(t), float(r), bool(s))
-                   for c, t, r, s in zip(arr.cuboids, trans, rot, ok, strict=True))
-    for a in (centers, rotations, drift):
-        a.setflags(write=False)
-    return SettleResult(engine, bool(ok.all()) and not blew, bodies, centers, rotations,
-                        "blew_up" if blew else "ok", float(sim_time), float(wall_time),
-                        drift, welds)
 
 
 def settle(arr: Arrangement, engine: str, *, mu: float = DEFAULT_MU, welds: str = "exact",
-           duration: float | None = None) -> SettleResult:
+           duration: float | None = None, budget: float | None = None,
+           progress=None) -> SettleResult:
     """Settle ``arr`` in ``engine`` from rest and judge which cuboids moved.
+
+    A scene outside :data:`~simulate.settling.ENGINE_EDGE_RANGE` (or with densities
+    outside :data:`~simulate.settling.ENGINE_DENSITY_RANGE`) is simulated in the frame of
+    :func:`~simulate.settling.engine_frame`, scaled by a power of ten, and its motions
+    are mapped back: the verdict of a scene does not depend on its unit of length.
 
     Parameters
     ----------
@@ -202,13 +95,29 @@ def settle(arr: Arrangement, engine: str, *, mu: float = DEFAULT_MU, welds: str 
     welds : {"exact", "constraint"}
         ``fixed`` contacts as one rigid body (exact) or as engine weld constraints.
     duration : float, optional
-        Simulated seconds; default :func:`default_duration`.
+        Simulated seconds in the engine's frame; default :func:`default_duration`.
+    budget : float, optional
+        Wall-time limit in seconds (load + simulate).  The run's total is extrapolated
+        early, and a run that would exceed it stops with :class:`InputError` stating the
+        estimate.  None: no limit.
+    progress : callable(str), optional
+        Receives a progress line every few seconds of a long run.
 
     Returns
     -------
     SettleResult
+        ``length_scale`` records the factor of the engine frame (1.0 when unscaled);
+        ``sim_time`` is in the scene's own time (the engine's divided by
+        sqrt(length_scale)).
+
+    Raises
+    ------
+    InputError
+        Unknown engine or welds; a scene the engine cannot load or simulate within the
+        budget (one line saying why).
     """
-    from .export import check_welds
+    from .bodies import check_welds
+    from .settling import BudgetExceeded, engine_frame
 
     check_welds(welds)
     if engine == "mujoco":
@@ -220,5 +129,24 @@ def settle(arr: Arrangement, engine: str, *, mu: float = DEFAULT_MU, welds: str 
     if not arr.cuboids:
         return SettleResult(engine, True, (), np.zeros((0, 3)), np.zeros((0, 3, 3)), "ok",
                             0.0, 0.0, np.zeros(0), welds)
-    return run(arr, mu=mu, welds=welds,
-               duration=default_duration(arr) if duration is None else float(duration))
+    scaled, s, _ = engine_frame(arr)
+    try:
+        res = run(scaled, mu=mu, welds=welds,
+                  duration=default_duration(scaled) if duration is None else float(duration),
+                  budget=budget, progress=progress)
+    except BudgetExceeded as exc:
+        raise InputError(str(exc)) from None
+    if s == 1.0 and scaled is arr:
+        return res
+    # motions back to the scene's own lengths and times (the judge is scale free)
+
+    out = judge(arr, engine, np.asarray(res.centers) / s, res.rotations,
+                np.asarray(res.drift) / s, _members(res, arr), res.sim_time / np.sqrt(s),
+                res.wall_time, welds)
+    return dataclass_replace(out, length_scale=s)
+
+
+def _members(res: SettleResult, arr: Arrangement) -> list[np.ndarray]:
+    from .bodies import rigid_bodies
+
+    return [b.members for b in rigid_bodies(arr, res.welds)[0]]

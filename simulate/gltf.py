@@ -15,7 +15,7 @@ import numpy as np
 
 from pipeline.model import Arrangement
 
-from .export import scene_extent
+from .bodies import scene_extent
 
 SUPPORT_SPAN = 2.0
 SUPPORT_THICKNESS = 0.01

@@ -45,7 +45,7 @@ import numpy as np
 from pipeline.constants import DEFAULT_MU, GRAVITY
 from pipeline.model import Arrangement
 
-from .export import rigid_bodies
+from .bodies import rigid_bodies
 
 #: Simulation time step for a scene whose smallest box is ``REFERENCE_SIZE`` long, seconds;
 #: :func:`timestep_for` scales it with ``sqrt(size)`` so every scene is simulated alike in

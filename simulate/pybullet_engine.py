@@ -33,9 +33,10 @@ from pathlib import Path
 import numpy as np
 
 from pipeline.constants import DEFAULT_MU, GRAVITY
+from pipeline.errors import InputError
 from pipeline.model import Arrangement
 
-from .engines import DRIFT_WINDOW, SettleResult, judge
+from .settling import DRIFT_WINDOW, SettleResult, StepClock, judge
 
 #: Time step for a scene whose smallest box is ``REFERENCE_SIZE`` long, seconds.
 TIMESTEP = 1.0 / 960.0
@@ -83,11 +84,11 @@ class Scene:
 
     def __init__(self, arr: Arrangement, *, mu: float = DEFAULT_MU, welds: str = "exact",
                  timestep: float | None = None, iterations: int = SOLVER_ITERATIONS) -> None:
-        import pybullet as p
-
-        from .export import rigid_bodies
+        from .bodies import rigid_bodies
+        from .pybullet_import import pybullet
         from .urdf import arrangement_to_urdf_files
 
+        p = pybullet()
         self.p = p
         self.arr = arr
         self.dt = timestep_for(arr) if timestep is None else float(timestep)
@@ -106,12 +107,15 @@ class Scene:
                     path = Path(tmp) / rel
                     path.parent.mkdir(parents=True, exist_ok=True)
                     path.write_text(text, encoding="utf-8")
-                self.world = p.loadURDF(str(Path(tmp) / "urdf/world.urdf"), useFixedBase=True,
-                                        flags=flags, physicsClientId=cid)
-                self.ids = [-1 if b.static else
-                            p.loadURDF(str(Path(tmp) / f"urdf/{b.name}.urdf"), flags=flags,
-                                       physicsClientId=cid)
-                            for b in self.bodies]
+                try:
+                    self.world = p.loadURDF(str(Path(tmp) / "urdf/world.urdf"),
+                                            useFixedBase=True, flags=flags, physicsClientId=cid)
+                    self.ids = [-1 if b.static else
+                                p.loadURDF(str(Path(tmp) / f"urdf/{b.name}.urdf"), flags=flags,
+                                           physicsClientId=cid)
+                                for b in self.bodies]
+                except p.error as exc:
+                    raise InputError(f"pybullet cannot load this scene ({exc})") from None
             f = float(np.sqrt(mu))
             for bid in [self.world, *[i for i in self.ids if i >= 0]]:
                 p.changeDynamics(bid, -1, lateralFriction=f, restitution=0.0,
@@ -182,16 +186,17 @@ class Scene:
 
 
 def settle(arr: Arrangement, *, mu: float = DEFAULT_MU, welds: str = "exact",
-           duration: float = 2.0) -> SettleResult:
+           duration: float = 2.0, budget: float | None = None, progress=None) -> SettleResult:
     """Simulate ``duration`` seconds in PyBullet and judge (see :mod:`simulate.engines`)."""
     t0 = time.perf_counter()
     scene = Scene(arr, mu=mu, welds=welds)
     try:
         n = max(1, int(round(duration / scene.dt)))
         n_window = int(round(DRIFT_WINDOW * n))
-        scene.step(n - n_window)
+        clock = StepClock("pybullet", n, len(arr.cuboids), budget, progress, t0)
+        clock.run(scene.step, n - n_window)
         before, _ = scene.cuboid_poses()
-        scene.step(n_window)
+        clock.run(scene.step, n_window)
         centers, rotations = scene.cuboid_poses()
         drift = np.linalg.norm(centers - before, axis=1)
     finally:

@@ -73,8 +73,9 @@ class PybulletRenderer:
     """Renders one arrangement from many cameras in its own ``DIRECT`` client."""
 
     def __init__(self, arr: Arrangement, colors: np.ndarray | None = None) -> None:
-        import pybullet as p
+        from .pybullet_import import pybullet
 
+        p = pybullet()
         self._p = p
         self.client = p.connect(p.DIRECT)
         boxes = scene_boxes(arr, colors)

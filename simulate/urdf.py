@@ -37,7 +37,7 @@ import numpy as np
 from pipeline.constants import DEFAULT_MU
 from pipeline.model import Arrangement
 
-from .export import RigidBody, rigid_bodies, scene_extent
+from .bodies import RigidBody, rigid_bodies, scene_extent
 from .mjcf import _f, _frame_from_normal, _v
 
 #: Edge of the square slab that stands for a support, in scene extents (at least 1 m).

@@ -11,6 +11,8 @@ import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """\
 Sections are the modules in eval/benchmarks/ (each has TITLE and run(quick) returning
 tables).  The document (machine description, then each section's tables with medians)
@@ -33,7 +35,7 @@ class SectionResult:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--out", type=out_arg, required=True, help="output folder (created)")
     parser.add_argument("--quick", action="store_true", help="small sizes, few repeats")
     parser.add_argument("--only", default=None, metavar="SECTION,...",
                         help="run only these sections (module names in eval/benchmarks)")
@@ -178,8 +180,10 @@ def plot(results: list[SectionResult], path: Path) -> int:
 def run(args: argparse.Namespace) -> int:
     from pipeline import atomic
     from pipeline.errors import InputError
+    from pipeline.outdir import check_out
     from pipeline.progress import Progress
 
+    check_out(args.out)
     names = section_names()
     if args.only:
         wanted = [s.strip() for s in args.only.split(",") if s.strip()]

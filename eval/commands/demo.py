@@ -12,13 +12,15 @@ import argparse
 import time
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """outputs: OUT/scene (the synthetic scene directory with its ground truth) and
 OUT/result (arrangement.json, scene.xml, scene.urdf, arrangement.glb, overlay.png,
 view.png, report.md).  Exit 0 when the result stands in every check."""
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=Path, default=Path("demo_out"),
+    p.add_argument("--out", type=out_arg, default=Path("demo_out"),
                    help="output folder (default: demo_out)")
     p.add_argument("--seed", type=int, default=2, help="scene seed (default 2)")
     p.add_argument("--family", default="demo",
@@ -27,7 +29,28 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from eval.metrics import score_arrangement
+    from eval.commands.synth import KINDS
+    from pipeline.errors import InputError
+    from pipeline.outdir import check_out, output_folder
+
+    if args.seed < 0:
+        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    if not (0.01 <= args.budget <= 86400):
+        raise InputError(f"--budget: must be a positive number of seconds up to a day, got "
+                         f"{args.budget}")
+    if args.family not in KINDS:
+        raise InputError(f"--family: unknown scene family {args.family!r}; choose one of: "
+                         + ", ".join(KINDS))
+    check_out(args.out)
+    t0 = time.perf_counter()
+    out = Path(args.out)
+    with output_folder(out) as tmp:
+        made, scan, initial, result, engines = _make(args, tmp, out)
+    scene_dir, result_dir = out / "scene", out / "result"
+    return _summary(args, made, initial, result, engines, scene_dir, result_dir, t0)
+
+
+def _make(args: argparse.Namespace, tmp: Path, out: Path):
     from eval.run_full import check_engines, write_full_outputs
     from pipeline.errors import InputError
     from pipeline.imagine import imagine
@@ -36,9 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from pipeline.run import RunConfig, run_scan
     from synth_scenes.scene_dir import make_scene_dir
 
-    t0 = time.perf_counter()
-    out = Path(args.out)
-    scene_dir, result_dir = out / "scene", out / "result"
+    scene_dir, result_dir = tmp / "scene", tmp / "result"
     with Progress(5, "unseen demo") as bar:
         bar.update(0, "synthesizing the scene")
         # the demo camera looks from the front, so the table hides the tower's lower boxes
@@ -60,6 +81,13 @@ def run(args: argparse.Namespace) -> int:
         write_full_outputs(result_dir, scan, initial, result, report0, engines,
                            f"unseen demo --out {out} --seed {args.seed}", 0)
         bar.update(1)
+    return made, scan, initial, result, engines
+
+
+def _summary(args, made, initial, result, engines, scene_dir: Path, result_dir: Path,
+             t0: float) -> int:
+    from eval.metrics import score_arrangement
+
     score = score_arrangement(result.arrangement, made.truth.arrangement, initial=initial)
     final = result.arrangement
     rep = result.report

@@ -9,6 +9,8 @@ import shlex
 import sys
 from pathlib import Path
 
+from pipeline.outdir import out_arg
+
 EPILOG = """\
 Suites live in eval/suites/<suite>.py.  Each writes Markdown and CSV tables and plots
 under --out, one JSON record per scene under --out/tasks (a rerun resumes from them),
@@ -38,7 +40,7 @@ def available_suites() -> list[str]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     suites = ", ".join(available_suites()) or "(none yet)"
     parser.add_argument("suite", help=f"one of: {suites}")
-    parser.add_argument("--out", type=Path, required=True, help="output folder (created)")
+    parser.add_argument("--out", type=out_arg, required=True, help="output folder (created)")
     parser.add_argument("--seed", type=int, default=0, help="suite seed (default 0)")
     parser.add_argument("--n", type=int, default=None,
                         help="number of scenes/runs (default: the suite's own)")
@@ -142,14 +144,60 @@ def run(args: argparse.Namespace) -> int:
         if v is not None and v < (0 if n == "pool_seed" else 1):
             raise InputError(f"--{n.replace('_', '-')}: must be "
                              f"{'non-negative' if n == 'pool_seed' else 'at least 1'}, got {v}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InputError(f"--out {args.out}: exists and is not a folder")
+    from pipeline.outdir import check_out
+
+    check_out(args.out)
+    if args.dask:
+        check_dask(args.dask)
+    created = not args.out.exists()
     args.out.mkdir(parents=True, exist_ok=True)
     cmd = canonical_command(args)
     record = {"command": shlex.join(cmd), "argv": cmd, "suite": args.suite, "seed": args.seed,
               "n": args.n, "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
               "versions": package_versions(), "python": sys.version.split()[0], "threads": threads,
               "platform": platform.platform()}
-    atomic.write_text(args.out / "command.json", json.dumps(record, indent=1) + "\n")
+    record_path = args.out / "command.json"
+    previous = record_path.read_bytes() if record_path.is_file() else None
+    atomic.write_text(record_path, json.dumps(record, indent=1) + "\n")
     module = importlib.import_module(f"eval.suites.{args.suite}")
-    return int(module.run(args) or 0)
+    try:
+        return int(module.run(args) or 0)
+    except InputError:
+        # the suite refused its input: leave --out as it was
+        if previous is None:
+            record_path.unlink(missing_ok=True)
+        else:
+            atomic.write_bytes(record_path, previous)
+        if created and not any(args.out.iterdir()):
+            args.out.rmdir()
+        raise
+
+
+#: Seconds to wait for a Dask scheduler to answer before giving up.
+DASK_CONNECT_TIMEOUT = 3.0
+
+
+def check_dask(address: str) -> None:
+    """``--dask``: a ``tcp://HOST:PORT`` (or ``tls://``) address where something answers.
+
+    Checked with one TCP connection of :data:`DASK_CONNECT_TIMEOUT` seconds, so a wrong
+    address is one line in seconds rather than Dask's 30 s timeout and a traceback.
+    """
+    import re
+    import socket
+
+    from pipeline.errors import InputError
+
+    m = re.fullmatch(r"(tcp|tls)://(\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})", address)
+    if not m or not 0 < int(m.group(3)) < 65536:
+        raise InputError(f"--dask {address!r}: expected a scheduler address tcp://HOST:PORT "
+                         "(e.g. tcp://10.0.0.5:8786)")
+    host, port = m.group(2).strip("[]"), int(m.group(3))
+    try:
+        with socket.create_connection((host, port), timeout=DASK_CONNECT_TIMEOUT):
+            pass
+    except OSError as exc:
+        why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise InputError(f"--dask {address}: no scheduler answers there ({why} within "
+                         f"{DASK_CONNECT_TIMEOUT:g} s); start one with 'dask scheduler' or "
+                         "use --workers N") from None

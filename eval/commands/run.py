@@ -12,8 +12,6 @@ import shlex
 import sys
 from pathlib import Path
 
-from pipeline.errors import InputError
-
 R = "../shared/data/real"
 EPILOG = f"""\
 inputs:
@@ -64,7 +62,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "without boxes nothing can hold up, and dropping glue joints (the best "
                         "found so far is kept); refinement then gets what is left, at least a "
                         "tenth of it")
-    p.add_argument("--mu", type=float, default=0.7, help="friction coefficient (default 0.7)")
+    p.add_argument("--mu", type=float, default=0.7,
+                   help="friction coefficient (default 0.7): used by the search, written to "
+                        "scene.xml / scene.urdf and recorded as meta.mu for check and export")
     p.add_argument("--check-engines", action="store_true",
                    help="settle the result in MuJoCo and PyBullet and report their verdicts")
     p.add_argument("--no-symmetry", action="store_true",
@@ -73,8 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--disable", default="", metavar="PRIOR[,PRIOR...]",
                    help="switch priors off (see README, 'The method'): " + ", ".join(
                        _prior_names()))
-    p.add_argument("--color", help="colour image file (relative to INPUT folder or absolute)")
-    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat)")
+    p.add_argument("--color", help="colour image file (absolute, or relative to INPUT: a scene "
+                                   "directory's scan/ first, then INPUT itself)")
+    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat), found like --color")
     p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
     p.add_argument("--depth-format", default="auto",
                    choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
@@ -82,6 +83,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--depth-scale", type=float, default=None,
                    help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
+    p.add_argument("--scale", type=float, default=None,
+                   help="metres per input unit (0.001 for a cloud in mm); default: a bare cloud "
+                        "whose extent is not 0.2-50 m is rescaled by a power of ten (noted in "
+                        "report.md, meta.input_scale), a depth scan is refused")
     p.add_argument("--up", help="up direction in the input frame: -y, z, or x,y,z")
     p.add_argument("--floor-height", type=float, default=None, metavar="H",
                    help="the floor's height in metres along up in the input frame (with "
@@ -124,7 +129,7 @@ def config_from_args(args: argparse.Namespace):
                        up=args.up, max_depth=args.max_depth, instance=args.instance,
                        scribbles=args.scribbles,
                        floor_height=getattr(args, "floor_height", None),
-                       pose=getattr(args, "pose", None))
+                       pose=getattr(args, "pose", None), scale=getattr(args, "scale", None))
     imagine = ImagineConfig(budget=args.budget, mu=args.mu, disabled=frozenset(disabled))
     return RunConfig(seed=args.seed, segmentation=args.segmentation, cell=args.cell,
                      edges=not args.no_edges, stage=args.stage, imagine=imagine, load=load)
@@ -141,7 +146,8 @@ def run_initial(args: argparse.Namespace, progress=None):
 
 
 def write_initial_outputs(out: Path, scan, arr, report: dict, command: str, seed: int) -> None:
-    """arrangement.json, overlay.png, view.png, report.md."""
+    """arrangement.json, overlay.png, view.png, report.md (into ``out``, an
+    :func:`pipeline.outdir.output_folder`'s temporary folder)."""
     import numpy as np
 
     from pipeline import atomic
@@ -204,23 +210,27 @@ def report_markdown(arr, report: dict, command: str, seed: int) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from eval.run_checks import inputs, validate_args
+
+    validate_args(args)
     if args.stage == "full":
         from eval.run_full import run_full
 
         code, line = run_full(args, config_from_args(args))
         print(line)
         return code
+    from pipeline.outdir import output_folder
     from pipeline.progress import Progress
 
-    with Progress(None, "unseen run") as bar:
-        scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(f"--out {out}: exists and is not a folder")
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    write_initial_outputs(out, scan, arr, report, command, args.seed)
+    with output_folder(out, inputs=inputs(args)) as tmp:
+        with Progress(None, "unseen run") as bar:
+            scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
+        write_initial_outputs(tmp, scan, arr, report, command, args.seed)
     c = report["counts"]
     print(f"{c['cuboids']} cuboids from {c['objects']} objects, {c['walls']} walls, "
           f"{report['timings']['total']:.2f} s -> {out}")
     return 0
+

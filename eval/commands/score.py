@@ -70,6 +70,9 @@ def run(args: argparse.Namespace) -> int:
     pred = read_arrangement(pred_file)
     gt_file = truth_path(args.truth)
     gt = read_arrangement(gt_file)
+    if not gt.cuboids:
+        raise InputError(f"{gt_file}: the truth has no cuboids, so there is nothing to match or "
+                         "score against; give the scene's ground truth")
     initial = read_arrangement(args.initial) if args.initial is not None else None
     score = score_arrangement(pred, gt, initial=initial, graph=args.graph, min_iou=min_iou)
     if args.json:

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
+
+from pipeline.outdir import out_arg
 
 #: the scene families (same order as ``synth_scenes.registry.FAMILIES``; a test checks it)
 KINDS = ("stack", "counterweight", "bridge", "table", "chair", "shelf", "wall_shelf", "desk",
@@ -31,7 +32,7 @@ Exit 0 written, 1 no valid scene found within --max-attempts, 2 bad input."""
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("kind", metavar="KIND", help="scene family: " + ", ".join(KINDS))
-    parser.add_argument("--out", type=Path, required=True, metavar="DIR", help="scene directory (created)")
+    parser.add_argument("--out", type=out_arg, required=True, metavar="DIR", help="scene directory (created)")
     parser.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
     parser.add_argument("--views", type=int, default=1, metavar="K", help="camera views (default 1)")
     parser.add_argument("--noise", default="kinect", choices=("kinect", "none"),
@@ -47,45 +48,82 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true", help="print a JSON summary")
 
 
+#: Bounds of the options (memory and time: ``--views 1000`` peaked at 22 GB).
+MAX_VIEWS = 64
+MB_PER_VIEW = 25
+MAX_BOXES = 200
+MAX_OBJECTS = 100
+MAX_ATTEMPTS = 1000
+
+
+class _NothingWritten(Exception):
+    """No valid scene: leave --out as it was."""
+
+    def __init__(self, result) -> None:
+        super().__init__("no valid scene")
+        self.result = result
+
+
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except _NothingWritten as exc:
+        gt = exc.result.truth
+        if args.json:
+            print(json.dumps(_summary(args, exc.result), indent=2))
+        print(f"unseen synth: no valid {args.kind} scene in {gt.attempts} attempts (seed "
+              f"{args.seed}); nothing written. Try another --seed.", file=sys.stderr)
+        return 1
+
+
+def _summary(args: argparse.Namespace, result) -> dict:
+    gt = result.truth
+    arr = gt.arrangement
+    return {"out": str(args.out), "family": args.kind, "seed": args.seed,
+            "status": gt.status, "cuboids": len(arr.cuboids),
+            "objects": len({c.object for c in arr.cuboids}),
+            "contacts": len(arr.contacts),
+            "fixed": sum(c.type == "fixed" for c in arr.contacts),
+            "attempts": gt.attempts, "validation": gt.validation.verdicts(),
+            "views": args.views, "points": result.n_points, "seconds": round(gt.seconds, 3)}
+
+
+def _run(args: argparse.Namespace) -> int:
     from pipeline.errors import InputError
+    from pipeline.outdir import check_out, output_folder
     from pipeline.progress import Progress
     from synth_scenes.scene_dir import make_scene_dir
 
     if args.kind not in KINDS:
         raise InputError(f"KIND: unknown scene family {args.kind!r}; choose one of: "
                          + ", ".join(KINDS))
-    for name in ("n_boxes", "n_objects", "max_attempts"):
+    for name, top in (("n_boxes", MAX_BOXES), ("n_objects", MAX_OBJECTS),
+                      ("max_attempts", MAX_ATTEMPTS)):
         v = getattr(args, name)
-        if v is not None and v < 1:
-            raise InputError(f"--{name.replace('_', '-')}: must be at least 1, got {v}")
+        if v is not None and not 1 <= v <= top:
+            raise InputError(f"--{name.replace('_', '-')}: must be from 1 to {top}, got {v}")
     if args.seed < 0:
         raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
-    if args.out.exists() and not args.out.is_dir():
-        raise InputError(f"--out {args.out}: exists and is not a folder; choose another path")
+    if not 1 <= args.views <= MAX_VIEWS:
+        raise InputError(f"--views: must be from 1 to {MAX_VIEWS}, got {args.views} (each view "
+                         f"takes about {MB_PER_VIEW} MB of memory while the scan is made: "
+                         f"{args.views} views would need about "
+                         f"{max(args.views, 0) * MB_PER_VIEW / 1000:.1f} GB)")
+    check_out(args.out)
     engines = ("mujoco", "pybullet") if args.engine == "all" else (args.engine,)
-    with Progress(None, f"synth {args.kind}") as bar:
-        result = make_scene_dir(args.kind, args.out, args.seed, views=args.views,
+    with output_folder(args.out) as tmp, Progress(None, f"synth {args.kind}") as bar:
+        result = make_scene_dir(args.kind, tmp, args.seed, views=args.views,
                                 noise=args.noise, renderer=args.renderer, engines=engines,
                                 max_attempts=args.max_attempts, n_boxes=args.n_boxes,
                                 n_objects=args.n_objects)
         bar.update()
+        if result.truth.status != "ok":
+            raise _NothingWritten(result)
     gt = result.truth
-    arr = gt.arrangement
-    summary = {"out": str(args.out), "family": args.kind, "seed": args.seed,
-               "status": gt.status, "cuboids": len(arr.cuboids),
-               "objects": len({c.object for c in arr.cuboids}),
-               "contacts": len(arr.contacts),
-               "fixed": sum(c.type == "fixed" for c in arr.contacts),
-               "attempts": gt.attempts, "validation": gt.validation.verdicts(),
-               "views": args.views, "points": result.n_points, "seconds": round(gt.seconds, 3)}
+    summary = _summary(args, result)
     if args.json:
         print(json.dumps(summary, indent=2))
-    if gt.status != "ok":
-        print(f"unseen synth: no valid {args.kind} scene in {gt.attempts} attempts (seed "
-              f"{args.seed}); nothing written. Try another --seed.", file=sys.stderr)
-        return 1
-    if not args.json:
+    else:
         stands = " and ".join(engines)
         print(f"wrote {args.out}: {args.kind}, {summary['cuboids']} cuboids in "
               f"{summary['objects']} objects, {summary['contacts']} contacts "

@@ -8,33 +8,31 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import InputError
-from . import (
-    anchor_parts,
-    close_gaps,
-    connect_objects,
-    connectors,
-    copies,
-    deepen,
-    ground_parts,
-    hidden_supports,
-    join_parts,
-    mirror,
-    object_yaw,
-    overlaps,
-    reach,
-    relax_glue,
-    rows,
-    support_yaw,
-    upright,
-    yaw_fit,
-)
+from .anchor_parts import PRIOR as _anchor_parts
 from .base import Prior
+from .close_gaps import PRIOR as _close_gaps
+from .connect_objects import PRIOR as _connect_objects
+from .connectors import PRIOR as _connectors
+from .copies import PRIOR as _copies
+from .deepen import PRIOR as _deepen
+from .ground_parts import PRIOR as _ground_parts
+from .hidden_supports import PRIOR as _hidden_supports
+from .join_parts import PRIOR as _join_parts
+from .mirror import PRIOR as _mirror
+from .object_yaw import PRIOR as _object_yaw
+from .overlaps import PRIOR as _overlaps
+from .reach import PRIOR as _reach
+from .relax_glue import PRIOR as _relax_glue
+from .rows import PRIOR as _rows
+from .support_yaw import PRIOR as _support_yaw
+from .upright import PRIOR as _upright
+from .yaw_fit import PRIOR as _yaw_fit
 
 #: Every prior, in the order they run (stage by stage).
-PRIORS: tuple[Prior, ...] = tuple(m.PRIOR for m in (
-    upright, yaw_fit, object_yaw, support_yaw, overlaps,
-    rows, deepen, reach, connectors, join_parts, mirror, copies,
-    connect_objects, relax_glue, anchor_parts, ground_parts, hidden_supports, close_gaps))
+PRIORS: tuple[Prior, ...] = (
+    _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
+    _rows, _deepen, _reach, _connectors, _join_parts, _mirror, _copies,
+    _connect_objects, _relax_glue, _anchor_parts, _ground_parts, _hidden_supports, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.
 GROUPS: dict[str, tuple[str, ...]] = {"symmetry": ("mirror", "copies")}

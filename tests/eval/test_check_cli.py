@@ -95,3 +95,17 @@ def test_help_imports_no_heavy_library():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert "HEAVY []" in out.stdout, out.stdout + out.stderr
     assert "check" in out.stdout and "synth" in out.stdout
+
+
+def test_pybullet_prints_no_banner(stable_file):
+    """PyBullet's C extension announces its build time when imported; nothing of it shows."""
+    out = _run("check", str(stable_file), "--engine", "pybullet", "--json")
+    assert out.returncode == 0 and out.stderr == ""
+    assert json.loads(out.stdout)["engines"]["pybullet"]["stable"] is True
+
+
+def test_threshold_must_be_finite_and_positive(stable_file):
+    for bad in ("-1", "nan", "inf", "0"):
+        out = _run("check", str(stable_file), "--threshold", bad)
+        assert out.returncode == 2 and out.stderr.count("\n") == 1
+        assert "--threshold: must be a finite positive energy" in out.stderr

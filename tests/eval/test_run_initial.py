@@ -280,3 +280,27 @@ def test_scribbles_split_touching_boxes_with_grabcut(tmp_path, capsys):
         vc, vs = visible_box(fr, k, R)
         mine = [cb for cb in arr.cuboids if cb.object == f"scribble{k + 1}"]
         assert max(box_iou(cb.center, cb.rotation, cb.size, vc, R, vs) for cb in mine) > 0.7
+
+
+def test_depth_and_color_are_found_against_the_same_folder(tmp_path, capsys, frame):
+    """A scene directory's --depth and --color are both looked up in its scan/ first."""
+    scene = tmp_path / "scene"
+    write_frame(frame, scene / "scan", pose=True)
+    code, _, err = run_cli(capsys, scene, "--depth", "depth.png", "--color", "color.png",
+                           "--out", tmp_path / "a")
+    assert code == 0, err
+    code, _, _ = run_cli(capsys, scene, "--out", tmp_path / "b")
+    assert code == 0
+    a = read_arrangement(tmp_path / "a" / "arrangement.json")
+    b = read_arrangement(tmp_path / "b" / "arrangement.json")
+    assert len(a.cuboids) == len(b.cuboids) >= 2
+    np.testing.assert_array_equal(a.sizes, b.sizes)
+    code, _, err = run_cli(capsys, scene, "--depth", "nope.png", "--out", tmp_path / "c")
+    assert code == 2 and f"--depth nope.png: no such file in {scene / 'scan'}, {scene}" in err
+
+
+def test_max_depth_too_small_blames_max_depth(tmp_path, capsys, frame_dir):
+    code, _, err = run_cli(capsys, frame_dir, "--max-depth", "0.01", "--out", tmp_path / "o")
+    assert code == 2 and err.count("\n") == 1
+    assert "no depth reading within --max-depth 0.01 m" in err and "--depth-format" not in err
+    assert not (tmp_path / "o").exists()

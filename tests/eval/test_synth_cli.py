@@ -27,8 +27,8 @@ def test_help_lists_families(capsys):
 
 @pytest.mark.parametrize(("argv", "message"), [
     (["castle"], "unknown scene family 'castle'"),
-    (["stack", "--views", "0"], "--views: must be at least 1"),
-    (["stack", "--n-boxes", "0"], "--n-boxes: must be at least 1"),
+    (["stack", "--views", "0"], "--views: must be from 1 to 64"),
+    (["stack", "--n-boxes", "0"], "--n-boxes: must be from 1 to 200"),
     (["table", "--n-boxes", "3"], "--n-boxes: not an option of family 'table'"),
     (["stack", "--seed", "-1"], "--seed"),
 ])

@@ -32,13 +32,11 @@ def _motion(result, cid: str):
 
 
 @pytest.mark.parametrize("engine", ENGINES)
-def test_ten_cube_column_stands_quickly(engine: str) -> None:
-    settle(column(2), engine)  # warm the engine's import
+def test_ten_cube_column_stands(engine: str) -> None:
     r = settle(column(10), engine)
     assert r.stable and r.status == "ok"
     # soft contacts compress, but by far less than the threshold (2 mm for 10 cm cubes)
     assert max(b.translation for b in r.bodies) < 0.25 * TRANSLATION_REL * 0.1 * 4
-    assert r.wall_time < 3.0  # measured 0.1-0.3 s (MuJoCo), 0.4-1 s (PyBullet) on a busy CPU
     assert len(r.bodies) == 10 and r.centers.shape == (10, 3) and r.rotations.shape == (10, 3, 3)
 
 

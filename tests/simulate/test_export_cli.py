@@ -19,7 +19,7 @@ pytest.importorskip("mujoco")
 @pytest.fixture
 def arrangement_file(tmp_path: Path) -> Path:
     arr = Arrangement((box("seat", (0, 0, 0.45), (0.5, 0.5, 0.05), object="chair"),
-                       box("leg <&>", (0, 0, 0.21), (0.05, 0.05, 0.42), object="chair"),
+                       box("leg <&>", (0, 0, 0.2125), (0.05, 0.05, 0.425), object="chair"),
                        box('cup "a"', (0.1, 0.1, 0.525), (0.08, 0.08, 0.1))),
                       (ground(),),
                       (Contact("seat", "leg <&>", "fixed"), Contact("leg <&>", "ground"),
@@ -64,9 +64,9 @@ def test_export_writes_every_file_reproducibly(arrangement_file: Path, tmp_path:
 def test_constraint_welds(arrangement_file: Path, tmp_path: Path) -> None:
     import mujoco
 
-    assert main(["export", str(arrangement_file), "--out", str(tmp_path),
+    assert main(["export", str(arrangement_file), "--out", str(tmp_path / "c"),
                  "--welds", "constraint"]) == 0
-    model = mujoco.MjModel.from_xml_path(str(tmp_path / "scene.xml"))
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "c" / "scene.xml"))
     assert model.nbody == 4 and model.neq == 1
 
 
