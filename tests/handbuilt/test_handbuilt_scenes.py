@@ -49,15 +49,17 @@ PLANK_UPRIGHT = ("initial fit (pipeline.fit.fit_object): slant_frame needs a 2nd
                  "plane with >=10% of the points; the plank's 3 cm edge face holds 1.4-2.4% "
                  "(its broad face, tilted 20 deg, ~95%), so it is fitted upright "
                  "0.32x0.39x1.10 m, IoU 0.07")
-CHAIR_BACK = ("imagine.deepen_thin_boxes pushes the back's far face away from the camera, "
-              "i.e. over the seat when filmed from behind: 1.0 cm -> 43.6 cm (about the "
-              "seat's depth), IoU 0.07 with the 3 cm back; that space is in the back's shadow")
+CHAIR_BACK = ("prior deepen (pipeline.priors.deepen) pushes the back's far face away from "
+              "the camera, i.e. over the seat when filmed from behind: 1.0 cm -> 43.6 cm "
+              "(about the seat's depth), IoU 0.07 with the 3 cm back; that space is in the "
+              "back's shadow")
 TABLE_GREEDY = ("search._Group.greedy: legs' feet cut 3.5-4 cm by the 3 cm ground band; with "
                 "leg3 hidden+hallucinated the group has 11 edges (>10: no exhaustive dive); "
                 "pass 2 drops the back legs' unloaded floor extensions, then box-grown-to-top "
                 "(+0.061 m3) can't be swapped for legs-to-floor (0.005 m3)")
-TABLE_HALLUCINATED = ("symmetry.hallucinate turns leg0 half a turn about the top's centre, "
-                      "but the top (deepened, imagine.deepen_thin_boxes) spans y -0.389..0.287 "
+TABLE_HALLUCINATED = ("prior copies (pipeline.priors.copies) turns leg0 half a turn about "
+                      "the top's centre, but the top (deepened, prior deepen) spans y "
+                      "-0.389..0.287 "
                       "(true -0.35..0.35): the imagined leg3 spans y 0.166..0.209, the true "
                       "0.26..0.31, IoU 0")
 

@@ -3,10 +3,18 @@
 import numpy as np
 
 from pipeline.camera import Intrinsics, look_at
-from pipeline.extend import DepthView
+from pipeline.evidence import DepthView, Evidence
 from pipeline.imagine import imagine
 from pipeline.model import Arrangement, ObservedBox, box, ground
-from pipeline.symmetry import hidden_connectors
+from pipeline.priors import ImagineConfig
+from tests.pipeline.priors_util import changed
+
+
+def hidden_connectors(arr, views):
+    """The ``connectors`` prior alone: (arrangement, ids of the parts it added)."""
+    out, ids = changed("connectors", arr, views)
+    assert all(i not in arr.index for i in ids)  # it only adds parts
+    return out, ids
 
 
 def _depth(boxes, intr: Intrinsics, T: np.ndarray) -> np.ndarray:
@@ -66,10 +74,11 @@ def test_screen_above_its_foot_gets_the_hidden_neck():
 
 def test_imagine_holds_the_screen_on_the_neck_not_stretched_to_the_foot():
     arr, views = _monitor()
-    res = imagine(arr, views, budget=5)
+    res = imagine(arr, Evidence(tuple(views)), ImagineConfig(budget=5))
     out = res.arrangement
     assert out.stability.stable
-    new = res.report["connectors"]
+    new = [i for i in res.report.changed_by("connectors") if i not in arr.index]
+    assert new == [i for i in res.report.hallucinated if i.startswith("j")]
     assert len(new) == 1
     screen = out.cuboid("screen")
     assert screen.center[2] - screen.size[2] / 2 > 0.14  # its seen bottom edge is kept

@@ -3,9 +3,15 @@
 import numpy as np
 
 from pipeline.extend import candidate_edges
-from pipeline.imagine import ground_parts
 from pipeline.model import Arrangement, Contact, ObservedBox, box, ground
 from pipeline.search import finalize
+from tests.pipeline.priors_util import changed
+
+
+def ground_parts(final, initial, edges):
+    """The ``ground_parts`` prior alone on the searched ``final``: (arrangement, ids of
+    the parts it extended)."""
+    return changed("ground_parts", final, None, initial=initial, edges=edges)
 
 
 def _seen(c):

@@ -1,17 +1,96 @@
-"""Steps of :mod:`pipeline.imagine` around the search: glue relaxation, overlap repair,
-and the depth views of a fused multi-view scan."""
+"""The priors of :mod:`pipeline.imagine` around the search (glue relaxation, overlap
+repair, deepening, joins, gap closing, copies), each run alone as the orchestrator runs
+it (every proposal through the gate), and the depth views of a fused multi-view scan."""
 
 from __future__ import annotations
 
 import os
+import re
 
 import numpy as np
 import pytest
 
+from pipeline.boxops import BROAD_FACE_AREA, in_shadow, resting_cut, side_by_side
 from pipeline.contacts import find_contacts
-from pipeline.imagine import relax_fixed, repair_overlaps
 from pipeline.model import Arrangement, Contact, ObservedBox, box, ground
+from pipeline.priors import close_gaps, copies, deepen
 from pipeline.stability import check_stability
+from tests.pipeline.priors_util import (
+    accepted,
+    changed,
+    closed_pairs,
+    joined_pairs,
+    relax_fixed,
+    run,
+)
+
+DEEPEN = deepen.Params()  # DEEPEN.face_on_deg: .face_on_deg, DEEPEN.big_face: .big_face
+CLOSE = close_gaps.Params()  # GAP_CLOSE: .gap, WALL_GAP_CLOSE_REL: .wall_gap_rel, ...
+COPIES = copies.Params()  # COPIES.edge_step: .edge_step
+#: What ``align_boxes`` was: these priors, in this order.
+ALIGN = ("upright", "yaw_fit", "object_yaw", "support_yaw")
+
+
+def repair_overlaps(arr, views=None):
+    """The ``overlaps`` prior alone: (arrangement, overlaps cleared: its accepted edits)."""
+    out, report = run("overlaps", arr, views)
+    return out, len(accepted(report, "overlaps"))
+
+
+def deepen_thin_boxes(arr, views):
+    """The ``deepen`` prior alone: (arrangement, ids of the boxes its edits changed)."""
+    return changed("deepen", arr, views)
+
+
+def align_boxes(arr, views=None):
+    """The four orientation priors, in order: (arrangement, number of boxes turned)."""
+    out, ids = changed(ALIGN, arr, views)
+    return out, len(ids)
+
+
+def fit_yaws(arr, views):
+    return changed("yaw_fit", arr, views)
+
+
+def join_parts(arr, views=None):
+    """The ``join_parts`` prior alone: (arrangement, ``a+b`` for each pair joined)."""
+    out, report = run("join_parts", arr, views)
+    return out, joined_pairs(report)
+
+
+def anchor_parts(final, initial, edges):
+    """The ``anchor_parts`` prior alone on the searched ``final``: (arrangement,
+    ``part|wall`` for each part it fixed to a wall)."""
+    out, report = run("anchor_parts", final, None, initial=initial, edges=edges)
+    done = []
+    for e in accepted(report, "anchor_parts"):
+        m = re.match(r"^(\S+), a part of \S+ hung on (\S+), fixed to it$", e.reason)
+        assert m is not None, e.reason
+        done.append(f"{m.group(1)}|{m.group(2)}")
+    return out, done
+
+
+def close_hidden_gaps(final, views, params=None):
+    """The ``close_gaps`` prior alone on the searched ``final``: (arrangement, the
+    ``a|b`` pairs it closed)."""
+    out, report = run("close_gaps", final, views,
+                      params=None if params is None else {"close_gaps": params})
+    return out, closed_pairs(report)
+
+
+def reach_occluders(arr, views):
+    return changed("reach_occluders", arr, views)
+
+
+def hallucinate(arr, views):
+    """The ``copies`` prior alone: (arrangement, ids of the boxes it changed (a top grown
+    to its seen edge) or added (the copies), each once, in order)."""
+    return changed("copies", arr, views)
+
+
+def _new(ids, arr):
+    """The ids among ``ids`` that ``arr`` does not have: the boxes a prior added."""
+    return [i for i in ids if i not in arr.index]
 
 
 def _observed(c):
@@ -36,6 +115,14 @@ def test_a_glue_joint_from_a_shallow_looking_box_is_relaxed_to_touch():
     glued = Arrangement((lower, upper), (ground(),),
                         (Contact("lo", "ground"), Contact("lo", "up", "fixed")))
     assert check_stability(glued).stable
+    # as the search leaves it (the settle priors run after the search: contacts and
+    # verdict from the geometry, the gate then asks that every edit leaves it standing)
+    from pipeline.search import finalize
+
+    glued = finalize(Arrangement((lower, upper), (ground(),)), [Contact("lo", "up", "fixed")])
+    assert {(c.key, c.type) for c in glued.contacts} == {
+        (Contact("lo", "ground").key, "touch"), (Contact("lo", "up").key, "fixed")}
+    assert glued.stability.stable
     out, tried, relaxed = relax_fixed(glued)
     assert (tried, relaxed) == (1, 1)
     assert {c.key: c.type for c in out.contacts}[Contact("lo", "up").key] == "touch"
@@ -84,7 +171,7 @@ def test_a_multi_view_scene_folder_loads_fused_with_its_frames(tmp_path):
         pytest.skip("rendering needs MUJOCO_GL=egl or osmesa (make test sets it)")
     from pipeline.camera import transform
     from pipeline.errors import InputError
-    from pipeline.imagine import views_from_scan
+    from pipeline.evidence import Evidence
     from pipeline.scan_io import load_scan
     from synth_scenes.scene_dir import make_scene_dir
 
@@ -97,8 +184,7 @@ def test_a_multi_view_scene_folder_loads_fused_with_its_frames(tmp_path):
     assert set(scan.instance_objects.values()) == {c.object for c in made.truth.arrangement.cuboids}
     assert np.array_equal(np.unique(scan.instance[scan.instance > 0]),
                           np.arange(1, len(made.truth.arrangement.cuboids) + 1))
-    arr = Arrangement((), (ground(),), meta={"camera_pose": np.eye(4).tolist()})
-    views = views_from_scan(scan, arr)
+    views = Evidence.from_scan(scan, np.eye(4)).views  # the scan's frame is the world's
     assert len(views) == 2
     np.testing.assert_array_equal(views[1].T_world_cam, scan.views[1].T_world_cam)
     (made.path / "scan" / "view1" / "camera_pose.json").unlink()
@@ -134,8 +220,7 @@ def _depth_of_boxes(boxes, T_world_cam, intr, far=4.0):
 
 def test_a_leg_seen_face_on_gets_depth_behind_it_up_to_its_width():
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.evidence import DepthView
     from pipeline.model import Support
 
     intr = Intrinsics.kinect_v1()
@@ -163,7 +248,7 @@ def _oblique_row_view(angle_deg, height=0.3):
     from the middle box's mid height (its top and, beyond 0 degrees, the side turned
     to the camera hidden by a neighbour), and the middle box fitted as its front face."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     a = np.radians(angle_deg)
@@ -177,7 +262,6 @@ def _oblique_row_view(angle_deg, height=0.3):
 
 @pytest.mark.parametrize("angle", [55.0, 65.0])
 def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
-    from pipeline.imagine import FACE_ON_MAX_DEG, FACE_ON_PART_MIN_FACE, deepen_thin_boxes
 
     row, views = _oblique_row_view(angle)
     seen = box("mid", (0, 0.004, 0.15), (0.3, 0.008, 0.3))  # only its front, 8 mm deep
@@ -188,7 +272,7 @@ def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
     # a small part of an object with other parts (a bracket) is not, at that angle ...
     part = box("mid", (0, 0.004, 0.15), (0.15, 0.008, 0.15), object="shelf")
     other = box("board", (0, 0.15, 0.5), (0.6, 0.3, 0.02), object="shelf")
-    assert FACE_ON_PART_MIN_FACE > 0.15
+    assert DEEPEN.big_face > 0.15
     out, ids = deepen_thin_boxes(Arrangement((part, other, *row), (ground(),)), views)
     assert "mid" not in ids
     # ... while one with a big face (a sofa's base) is
@@ -199,18 +283,17 @@ def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
     flat = box("mid", (0, 0.004, 0.01), (0.3, 0.008, 0.012))
     out, ids = deepen_thin_boxes(Arrangement((flat, *row), (ground(),)), views)
     assert ids == []
-    assert FACE_ON_MAX_DEG < 80.0
+    assert DEEPEN.face_on_deg < 80.0
     row, views = _oblique_row_view(80.0)
     out, ids = deepen_thin_boxes(Arrangement((seen, *row), (ground(),)), views)
-    assert ids == []  # beyond FACE_ON_MAX_DEG: no longer face-on
+    assert ids == []  # beyond DEEPEN.face_on_deg: no longer face-on
 
 
 def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
     # from above, the floor behind a thin panel is seen over its top: most of the space
     # a panel as deep as it is wide would fill was seen empty
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at((0.0, -1.5, 2.5), (0.0, 0.0, 0.35))
@@ -226,7 +309,6 @@ def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
 
 
 def test_align_boxes_sets_small_tilts_upright_and_parts_on_their_objects_yaw():
-    from pipeline.imagine import align_boxes
     from pipeline.model import rotation_about_axis, rotation_about_z
 
     tilt = rotation_about_axis([1.0, 1.0, 0.0], np.radians(9)) @ rotation_about_z(0.3)
@@ -257,8 +339,7 @@ def test_a_board_seen_by_its_front_edge_is_deepened_to_its_objects_depth():
     # a shelf's bottom board seen from straight ahead shows only its front edge; it gets
     # the depth its side panel shows (0.3 m), not its width (0.8 m); alone, its width
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at((0.0, -2.0, 0.1), (0.0, 0.0, 0.1))
@@ -277,7 +358,6 @@ def test_a_board_seen_by_its_front_edge_is_deepened_to_its_objects_depth():
 def test_a_board_joins_its_panel_and_the_book_in_the_way_gives_way():
     # the board's left end was not seen: it stops 4 cm short of the panel, and the book
     # standing there, fitted to its points, reaches 8 mm below the board's top
-    from pipeline.imagine import join_parts
 
     panel = box("panel", (-0.5, 0, 0.6), (0.02, 0.3, 1.2), object="shelf")
     board = box("board", (0.02, 0, 0.3), (0.94, 0.3, 0.02), object="shelf")
@@ -303,7 +383,6 @@ def test_a_join_never_trims_a_box_thinner_than_the_allowance_to_a_negative_size(
     # its way: the 2 cm trim allowance (for a board's noisy edge) would have cut 19 mm
     # off the book, leaving it -7 mm wide (written to arrangement.json, which then did
     # not load: room-1001 of Table 1); a box gives way by at most half its extent
-    from pipeline.imagine import join_parts
 
     panel = box("panel", (-0.493, 0, 0.6), (0.02, 0.3, 1.2), object="shelf")
     board = box("board", (0.02, 0, 0.3), (0.94, 0.3, 0.02), object="shelf")
@@ -394,12 +473,11 @@ def test_books_ending_at_the_underside_of_a_board_fitted_high_are_lifted_onto_it
         assert z.max() == pytest.approx(b.corners()[:, 2].max())
     # a box standing beside a slab is no book on it: a sofa's back (bottom on the floor,
     # like the seat's) reaching into the seat is not lifted onto it
-    from pipeline.imagine import _resting_cut
 
     seat = box("seat", (0, 0.067, 0.169), (1.498, 0.741, 0.337), object="sofa")
     back = box("back", (0, 0.369, 0.431), (1.686, 0.142, 0.861), object="sofa")
-    assert _resting_cut(back, seat) is None
-    assert _resting_cut(back, seat, slabs=0.0) is None
+    assert resting_cut(back, seat) is None
+    assert resting_cut(back, seat, slabs=0.0) is None
 
 
 def test_books_standing_side_by_side_give_way_sideways_not_from_below():
@@ -420,10 +498,9 @@ def test_books_standing_side_by_side_give_way_sideways_not_from_below():
         assert z1.min() == pytest.approx(z0.min()) and z1.max() == pytest.approx(z0.max())
     # a book on a board is no neighbour standing beside it: a slab is still cut from
     # the book's bottom, as before
-    from pipeline.imagine import _side_by_side
 
     board = box("board", (4.6, 0.2, 0.81), (0.9, 0.26, 0.02), object="shelf")
-    assert _side_by_side(a, b) and not _side_by_side(a, board)
+    assert side_by_side(a, b) and not side_by_side(a, board)
 
 def test_thin_books_in_front_of_each_other_give_way_sideways_not_to_nothing():
     # three books fitted to noisy points (from a shelf scan): two 9 mm deep, overlapping
@@ -508,7 +585,6 @@ def test_the_parts_of_a_shelf_hung_on_a_wall_are_fixed_to_it_and_a_short_bracket
     # bracket against the wall, one seen 3 cm short of it.  The object hangs on the wall
     # as one body: both brackets are fixed to the wall, the short one extended to it.
     from pipeline.extend import candidate_edges
-    from pipeline.imagine import anchor_parts
     from pipeline.model import Support
     from pipeline.search import finalize
 
@@ -534,7 +610,6 @@ def test_a_shelf_standing_on_the_floor_is_not_fixed_to_the_wall_it_touches():
     # only an object the wall already holds is anchored: a floor-standing shelf whose
     # panel touches the wall keeps a touch
     from pipeline.extend import candidate_edges
-    from pipeline.imagine import anchor_parts
     from pipeline.model import Support
     from pipeline.search import finalize
 
@@ -552,8 +627,7 @@ def test_a_block_seen_face_on_is_deepened_under_the_plank_that_rests_on_it():
     # of stopping the deepening (the block stayed a 4 cm sliver that could stand only
     # glued to the floor)
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at((0.0, -2.5, 1.5), (0.0, 0.0, 0.35))
@@ -574,7 +648,7 @@ def _two_books(gap_true, gap_fitted, eye=(0.0, -1.5, 0.9)):
     """Two upright books side by side (x), their true depth image from ``eye``, and their
     fitted boxes ``gap_fitted`` apart, after the search (finalized, stable)."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
     from pipeline.search import finalize
 
     intr = Intrinsics.kinect_v1()
@@ -591,7 +665,6 @@ def _two_books(gap_true, gap_fitted, eye=(0.0, -1.5, 0.9)):
 def test_a_gap_between_books_that_no_view_saw_into_is_closed():
     # the books touch; their fitted boxes ended 12 mm apart.  Seen from the front the gap
     # lies behind their spines: nothing says it is empty, and it is closed
-    from pipeline.imagine import close_hidden_gaps
 
     final, views = _two_books(0.0, 0.012)
     out, closed = close_hidden_gaps(final, views)
@@ -609,7 +682,6 @@ def test_a_hidden_gap_between_parts_already_fused_into_one_body_stays_open():
     # chair-1003 of Table 1: the back, fixed to the seat, ended 3.5 cm above a leg fixed
     # to the same seat; closing that hidden gap added a joint the chair does not have.
     # Here two legs 12 mm apart under one top, all one object fused together
-    from pipeline.imagine import close_hidden_gaps
     from pipeline.search import finalize
 
     _, views = _two_books(0.0, 0.012)
@@ -633,7 +705,7 @@ def _book_off_a_wall(gap: float, eye, true_gap: float = 0.0):
     off the wall (finalized, stable), and the true depth image from ``eye`` of the board,
     the wall (a 4 cm slab behind y = 0) and the book ``true_gap`` off the wall."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
     from pipeline.model import Support
     from pipeline.search import finalize
 
@@ -654,7 +726,6 @@ def test_a_book_standing_just_off_a_wall_it_hides_is_pushed_to_it():
     # wall_shelf-1000 of Table 1: books on a wall shelf lean on the wall; their boxes,
     # deepened from their spines, ended 11 mm short of it.  The wall behind a book is
     # hidden by the book: the gap is closed and the book touches the wall
-    from pipeline.imagine import close_hidden_gaps
 
     final, views = _book_off_a_wall(0.011, eye=(0.0, 2.0, 1.6))
     assert ("book", "wall:0") not in find_contacts(final).lookup()
@@ -665,9 +736,8 @@ def test_a_book_standing_just_off_a_wall_it_hides_is_pushed_to_it():
     assert ("book", "wall:0") in find_contacts(out).lookup() and out.stability.stable
     # a wall is a plane fitted to many points: gaps to it are closed up to 1.5 times as
     # long as between two boxes (2.5 cm here; 3.5 cm is left open)
-    from pipeline.imagine import GAP_CLOSE, WALL_GAP_CLOSE_REL
 
-    assert GAP_CLOSE < 0.025 < WALL_GAP_CLOSE_REL * GAP_CLOSE < 0.035
+    assert CLOSE.gap < 0.025 < CLOSE.wall_gap_rel * CLOSE.gap < 0.035
     for gap, n in ((0.025, 1), (0.035, 0)):
         final, views = _book_off_a_wall(gap, eye=(0.0, 2.0, 1.6))
         assert len(close_hidden_gaps(final, views)[1]) == n
@@ -684,8 +754,7 @@ def test_a_book_is_not_pushed_up_against_the_board_its_shelf_holds_above_it():
     # shelf holds (fused to its sides): a contact the scene does not have.  A plank
     # that rests on blocks, fused to nothing, is still pushed down onto a box under it
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import close_hidden_gaps
+    from pipeline.evidence import DepthView
     from pipeline.search import finalize
 
     intr = Intrinsics.kinect_v1()
@@ -718,7 +787,6 @@ def test_a_book_is_not_pushed_up_against_the_board_its_shelf_holds_above_it():
 def test_a_gap_the_camera_saw_the_floor_through_stays_open():
     # the books truly stand 15 mm apart and the camera looks down into the gap: the
     # floor seen between them says the gap is empty
-    from pipeline.imagine import close_hidden_gaps
 
     final, views = _two_books(0.015, 0.015, eye=(0.0, -0.4, 1.6))
     out, closed = close_hidden_gaps(final, views)
@@ -730,7 +798,7 @@ def test_a_point_beside_a_part_thinner_than_a_pixel_is_not_seen_empty():
     # 0.5 m behind.  A point at the panel's depth one pixel off the column (where the
     # panel's true, unseen bottom is) is not seen empty; three pixels off, it is.
     from pipeline.camera import Intrinsics, invert, transform
-    from pipeline.extend import DepthView, visible_free_fraction
+    from pipeline.evidence import DepthView, visible_free_fraction
 
     intr = Intrinsics.kinect_v1()
     T = np.eye(4)
@@ -755,8 +823,7 @@ def test_fit_yaws_turns_a_board_back_onto_what_the_camera_saw():
     # place), the box as seen.  The board turns back to within the 1-degree grid; the
     # box, which fits, and a box marked slanted stay as they are
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import align_boxes, fit_yaws
+    from pipeline.evidence import DepthView
     from pipeline.model import rotation_about_z
 
     intr = Intrinsics.kinect_v1()
@@ -789,8 +856,7 @@ def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches(
     # or its object's depth, it would reach 40 cm behind the chair and tip it over
     # backwards; it goes as far as the seat's rear edge, the object's far end there
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import deepen_thin_boxes
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at((0.0, -2.0, 1.2), (0.0, 0.0, 0.5))
@@ -805,14 +871,11 @@ def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches(
     assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
 
 
-def test_parts_held_through_their_object_do_not_join_through_space_seen_empty():
-    # a monitor: the screen hangs on the neck, the neck stands on the foot, and the
-    # camera sees the wall through the 6 cm between the screen and the foot.  Without
-    # the views (or without the neck, when nothing else holds the screen) the screen is
-    # joined down onto the foot; with them it is left on its neck
+def _monitor_before_a_wall():
+    """A monitor (foot, neck, screen 6 cm above the foot) and the depth image, from low in
+    front, of it before a wall: the wall is seen through the gap under the screen."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import join_parts
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at((0.3, -1.5, 0.05), (0.0, 0.0, 0.05))
@@ -821,10 +884,28 @@ def test_parts_held_through_their_object_do_not_join_through_space_seen_empty():
     screen = box("screen", (0, 0.005, 0.26), (0.55, 0.02, 0.36), object="monitor")
     wall = box("wall", (0, 1.0, 0.5), (3.0, 0.1, 2.0))
     views = [DepthView(_depth_of_boxes([foot, neck, screen, wall], T, intr), intr, T)]
+    return foot, neck, screen, views
+
+
+def test_parts_held_through_their_object_do_not_join_through_space_seen_empty():
+    # a monitor: the screen hangs on the neck, the neck stands on the foot, and the
+    # camera sees the wall through the 6 cm between the screen and the foot.  Without
+    # the views the screen is joined down onto the foot; with them it is left on its neck
+    foot, neck, screen, views = _monitor_before_a_wall()
     arr = Arrangement((foot, neck, screen), (ground(),))
     assert join_parts(arr)[1] == ["foot+screen"]
     out, joined = join_parts(arr, views=views)
     assert joined == [] and out.cuboid("screen") is screen
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "gate rule 2 (intended): the screen grown 6 cm down onto the foot puts volume the "
+    "view saw empty (88 % of its samples > FREE_FRACTION_MAX 10 %); the old join_parts "
+    "checked visibility only for parts already held together"))
+def test_parts_nothing_else_holds_together_join_even_through_space_seen_empty():
+    # (the second half of the test above) without the neck, nothing else holds the
+    # screen: it was joined down onto the foot as without views
+    foot, _neck, screen, views = _monitor_before_a_wall()
     alone = Arrangement((foot, screen), (ground(),))
     out, joined = join_parts(alone, views=views)
     assert joined == ["foot+screen"]
@@ -837,7 +918,6 @@ def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
     # reaches past the other (the panel up along the top's end, 8.5 cm: less volume
     # than the top over the panel), the other meets it (the top 2 mm to the panel);
     # a panel of another object there is left alone
-    from pipeline.imagine import join_parts
 
     top = box("top", (0, 0, 0.73), (1.2, 0.6, 0.03), object="desk")
     panel = box("panel", (-0.607, 0, 0.33), (0.01, 0.5, 0.66), object="desk")
@@ -884,8 +964,7 @@ def test_a_cushion_turned_off_its_back_has_its_own_rear_face_pushed_to_the_back(
     # Where the true cushion touches the back (the gap hidden behind it), the cushion's
     # own rear face is pushed instead: they touch face to face, nothing interpenetrates
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import close_hidden_gaps
+    from pipeline.evidence import DepthView
 
     final = _sofa_corner(0.012, 1.0)
     assert final.stability.stable
@@ -911,8 +990,7 @@ def test_a_cushion_whose_rear_face_was_guessed_is_still_pushed_to_the_seen_back(
     # guess) ended 6 mm short of the back.  The face pushed may be a guess; the face it
     # is pushed to must have been seen
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import close_hidden_gaps
+    from pipeline.evidence import DepthView
 
     final = _sofa_corner(0.012, 1.0)
     c = final.cuboid("cushion")
@@ -934,10 +1012,9 @@ def test_a_cushion_face_is_not_pushed_at_a_turned_corner_or_a_guessed_face(
     # 12 degrees off, the back's face meets the cushion's corner (the fit saw the gap);
     # or the back's front face is where a deepening guessed it: no push (though the
     # gap is as hidden as above: without the two tests it would be closed)
-    import pipeline.imagine as imagine_mod
+    import pipeline.boxops as boxops
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import close_hidden_gaps
+    from pipeline.evidence import DepthView
 
     final = _sofa_corner(0.012, yaw_deg, deepened)
     assert final.stability.stable and not find_contacts(final).penetrations
@@ -947,9 +1024,9 @@ def test_a_cushion_face_is_not_pushed_at_a_turned_corner_or_a_guessed_face(
     views = [DepthView(_depth_of_boxes(true, T, intr), intr, T)]
     out, closed = close_hidden_gaps(final, views)
     assert closed == [] and out is final
-    monkeypatch.setattr(imagine_mod, "GAP_FACE_COS", 0.0)
-    monkeypatch.setattr(imagine_mod, "SEEN_FACE_TOL", np.inf)
-    assert close_hidden_gaps(final, views)[1] == ["back|cushion"]
+    # faces facing each other at any angle (GAP_FACE_COS 0), and every face taken as seen
+    monkeypatch.setattr(boxops, "SEEN_FACE_TOL", np.inf)
+    assert close_hidden_gaps(final, views, {"face_deg": 90.0})[1] == ["back|cushion"]
 
 
 def _crates(step: float, carried: bool, plate: float = 0.0):
@@ -958,7 +1035,7 @@ def _crates(step: float, carried: bool, plate: float = 0.0):
     rests across the first two.  The middle one may stand on a ``plate`` (its top kept).
     Finalized (stable); the view saw nothing of the gap."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
     from pipeline.search import finalize
 
     intr = Intrinsics.kinect_v1()
@@ -979,7 +1056,6 @@ def test_a_row_of_crates_is_levelled_so_the_crate_above_meets_both_its_supports(
     # hangs 4.5 mm over the other, the gap hidden.  Raising the lower one's top alone
     # drives it into the crate it carries with its other neighbour; the tops of the row
     # are brought to one level instead, every contact kept
-    from pipeline.imagine import close_hidden_gaps
 
     final, views = _crates(0.0045, carried=True)
     assert final.stability.stable and ("l1", "u1") not in find_contacts(final).lookup()
@@ -996,9 +1072,8 @@ def test_a_hidden_gap_under_a_crate_resting_on_a_neighbour_of_the_same_level_clo
     # on the same floor hangs 3 cm over the other, which is raised to it.  The same 3 cm
     # over a crate that stands on a plate (its bottom 3 cm higher: the heights are no
     # fit's noise) is beyond the 2 cm of an ordinary hidden gap, and stays open
-    from pipeline.imagine import GAP_CLOSE, LEVEL_GAP_CLOSE, close_hidden_gaps
 
-    assert GAP_CLOSE < 0.03 < LEVEL_GAP_CLOSE
+    assert CLOSE.gap < 0.03 < CLOSE.level_gap
     final, views = _crates(0.03, carried=False)
     out, closed = close_hidden_gaps(final, views)
     assert closed == ["l1|u1"] and ("l1", "u1") in find_contacts(out).lookup()
@@ -1015,7 +1090,7 @@ def _slab_before_a_panel(width: float, height: float, gap: float):
     (``width`` x ``height`` front face) it truly touches; both seen (observed),
     finalized, with the depth image of the true scene from the front and above."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
     from pipeline.search import finalize
 
     panel = _observed(box("panel", (0, 0.1, height / 2), (width, 0.2, height), object="p"))
@@ -1032,9 +1107,8 @@ def test_a_box_is_pushed_to_a_broad_seen_face_across_a_wall_sized_gap():
     # back, hidden.  A broad face seen with many points is placed like a wall (a plane
     # fitted to them): the box's own face is pushed to it across up to 1.5 times the
     # box-to-box gap.  The same 2.5 cm before a panel of a quarter square metre stays
-    from pipeline.imagine import BROAD_FACE_AREA, GAP_CLOSE, WALL_GAP_CLOSE_REL, close_hidden_gaps
 
-    assert GAP_CLOSE < 0.025 < WALL_GAP_CLOSE_REL * GAP_CLOSE
+    assert CLOSE.gap < 0.025 < CLOSE.wall_gap_rel * CLOSE.gap
     assert 0.25 < BROAD_FACE_AREA < 2.0 * 0.85
     final, views = _slab_before_a_panel(2.0, 0.85, 0.025)
     assert final.stability.stable and ("panel", "slab") not in find_contacts(final).lookup()
@@ -1057,8 +1131,7 @@ def test_a_box_a_degree_askew_that_grazes_its_neighbour_as_it_is_pushed_still_cl
     # corner 0.3 mm into the arm; the boxes that touch are moved together instead
     # (pipeline.snap.close_pair), every contact kept
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.imagine import GRAZE_DEPTH, close_hidden_gaps
+    from pipeline.evidence import DepthView
     from pipeline.search import finalize
 
     t = np.radians(-1.5)
@@ -1073,7 +1146,7 @@ def test_a_box_a_degree_askew_that_grazes_its_neighbour_as_it_is_pushed_still_cl
     final = finalize(Arrangement((panel, arm, slab), (ground(),)), [])
     before = find_contacts(final).lookup()
     assert ("arm", "slab") in before and ("panel", "slab") not in before
-    assert 0.0002 < 0.012 * np.sin(-t) < GRAZE_DEPTH  # how far the corner would reach
+    assert 0.0002 < 0.012 * np.sin(-t) < CLOSE.graze_depth  # how far the corner would reach
     intr = Intrinsics.kinect_v1()
     T = look_at((0.3, -2.5, 1.6), (0.0, 0.0, 0.3))
     blind = [DepthView(np.zeros((intr.height, intr.width)), intr, T)]
@@ -1090,7 +1163,7 @@ def _cushion_before(back_width: float, back_height: float):
     askew to a board behind it (``back_width`` x ``back_height``) that it truly
     touches at a corner; both seen, with the depth image of the true scene."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
 
     t = np.radians(2.0)
     back = _observed(box("back", (0, 0.85, back_height / 2), (back_width, 1.1, back_height),
@@ -1110,7 +1183,6 @@ def test_a_slab_blocked_by_a_broad_face_within_a_step_is_deepened_up_to_it():
     # back, went undeepened: the first quarter of its depth reached 2 cm into the back
     # at a corner.  It goes as deep as it can, onto the back.  The same block by a
     # narrower face (a 20 cm rail as wide as the back) leaves it as it was
-    from pipeline.imagine import BROAD_FACE_AREA, deepen_thin_boxes
 
     arr, views = _cushion_before(2.0, 0.85)
     out, ids = deepen_thin_boxes(arr, views)
@@ -1130,7 +1202,6 @@ def test_a_slab_blocked_by_a_broad_face_within_a_step_is_deepened_up_to_it():
 def test_in_shadow_agrees_with_walking_the_segment():
     # an independent oracle: step along each segment from the eye and ask whether any
     # step lies inside the box (in the box's frame)
-    from pipeline.imagine import in_shadow
 
     rng = np.random.default_rng(7)
     occ = box("occ", (0.2, -0.1, 0.6), (0.5, 0.3, 0.8), yaw=0.4)
@@ -1155,7 +1226,7 @@ def _sofa_from_behind(eye, back_height=0.85, back_depth=0.2, yaws=(0.0, 0.0)):
     full cushions), and each cushion is fitted as the strip of its top that the back
     leaves in sight (its front 0.2 m, at ``yaws`` degrees)."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
 
     back = _observed(box("back", (0, 0.3 + back_depth / 2, back_height / 2),
                          (2.0, back_depth, back_height), object="sofa"))
@@ -1177,7 +1248,6 @@ def test_cushions_seen_from_behind_reach_back_to_the_sofa_back_that_hides_them(y
     # sofa-1001 of Table 1: from behind, the back hides all but the front 20 cm of each
     # seat cushion's top, fitted a few degrees askew; each cushion is turned onto the
     # back's axes and grown through the back's shadow until it touches the back
-    from pipeline.imagine import reach_occluders
 
     arr, views = _sofa_from_behind((0.3, 3.0, 1.6), yaws=yaws)
     out, ids = reach_occluders(arr, views)
@@ -1197,7 +1267,6 @@ def test_cushions_seen_from_behind_reach_back_to_the_sofa_back_that_hides_them(y
 
 
 def test_cushions_seen_from_the_front_or_over_a_low_back_are_left_as_seen():
-    from pipeline.imagine import BROAD_FACE_AREA, reach_occluders
 
     # from the front the strips' faces towards the back look away from the camera
     arr, views = _sofa_from_behind((0.3, -3.0, 1.6))
@@ -1218,7 +1287,7 @@ def _table_short_at_far_end(eye):
     """A 1.2 x 0.7 m table top at 0.73 m on four legs, fitted 8 cm short at its -x end;
     the two legs at +x are seen.  The depth image is the true scene's."""
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
 
     true_top = box("top", (0, 0, 0.715), (1.2, 0.7, 0.03), object="t")
     legs = [box(f"leg{k}", (sx * 0.55, sy * 0.3, 0.35), (0.05, 0.05, 0.7), object="t")
@@ -1235,23 +1304,24 @@ def test_a_top_seen_short_at_the_end_of_its_hidden_legs_grows_to_its_seen_edge()
     # table-1101 of held-out Table 1: the top's far strip was lost, and the two hidden
     # legs, copied about the short top's centre, stood 8 cm inside the true ones; the top
     # first grows to where the sensor saw past its edge (the floor behind it)
-    from pipeline.symmetry import EDGE_STEP, hallucinate
 
     arr, views, legs = _table_short_at_far_end((2.6, 0.4, 1.9))
-    out, new = hallucinate(arr, views)
-    assert len(new) == 2
+    out, ids = hallucinate(arr, views)
+    new = _new(ids, arr)
+    assert len(new) == 2 and ids == ["top", *new]  # the top grown first, then the copies
     top = out.cuboid("top")
     lo = float(top.corners()[:, 0].min())
     # the true edge, to within the step and the depth noise allowed for (3 sigma, 3.5 cm
     # at 3.3 m: the first space seen empty lies that far past the edge)
-    assert -0.6 - 3 * EDGE_STEP <= lo <= -0.6
+    assert -0.6 - 3 * COPIES.edge_step <= lo <= -0.6
     assert float(top.corners()[:, 0].max()) == pytest.approx(0.6, abs=1e-9)
     got = sorted(tuple(np.round(out.cuboid(i).center[:2], 3)) for i in new)
     want = sorted(tuple(leg.center[:2]) for leg in legs[2:])
-    np.testing.assert_allclose(got, want, atol=3 * EDGE_STEP)  # legs 5 cm wide: they overlap
+    np.testing.assert_allclose(got, want, atol=3 * COPIES.edge_step)  # legs 5 cm wide: they overlap
     # without a depth image nothing says where the edge is: the copies fall 8 cm short
-    out, new = hallucinate(arr, [])
-    assert out.cuboid("top") is arr.cuboid("top")
+    out, ids = hallucinate(arr, [])
+    new = _new(ids, arr)
+    assert out.cuboid("top") is arr.cuboid("top") and ids == new
     got = sorted(tuple(np.round(out.cuboid(i).center[:2], 3)) for i in new)
     np.testing.assert_allclose(got, [(-0.47, -0.3), (-0.47, 0.3)], atol=1e-9)
 
@@ -1264,8 +1334,7 @@ def test_no_legs_are_copied_about_a_top_whose_far_end_another_object_hides():
     # The same crate standing aside hides nothing: the top grows to its seen edge and
     # the legs are copied
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
-    from pipeline.symmetry import hallucinate
+    from pipeline.evidence import DepthView
 
     true_top = box("top", (0, 0, 0.715), (1.2, 0.7, 0.03), object="t")
     legs = [box(f"leg{k}", (sx * 0.55, sy * 0.3, 0.35), (0.05, 0.05, 0.7), object="t")
@@ -1280,21 +1349,23 @@ def test_no_legs_are_copied_about_a_top_whose_far_end_another_object_hides():
         views = [DepthView(_depth_of_boxes([true_top, *legs, crate], T, intr, far=8.0),
                            intr, T)]
         arr = Arrangement((top, *seen, crate), (ground(),))
-        out, new = hallucinate(arr, views)
+        out, ids = hallucinate(arr, views)
+        new = _new(ids, arr)
         assert len(new) == copied, crate_y
         if not copied:
-            assert out == arr
+            assert out == arr and ids == []
         else:
             assert float(out.cuboid("top").corners()[:, 0].min()) <= -0.6
+            assert ids == ["top", *new]  # grown to its seen edge, then the copies
 
 
 def test_a_top_whose_far_end_nobody_saw_past_keeps_its_fitted_size():
     from pipeline.camera import Intrinsics
-    from pipeline.extend import DepthView
-    from pipeline.symmetry import hallucinate
+    from pipeline.evidence import DepthView
 
     arr, views, _ = _table_short_at_far_end((2.6, 0.4, 1.9))
     intr = Intrinsics.kinect_v1()
     blind = [DepthView(np.zeros((intr.height, intr.width)), intr, views[0].T_world_cam)]
-    out, new = hallucinate(arr, blind)
-    assert len(new) == 2 and out.cuboid("top") is arr.cuboid("top")
+    out, ids = hallucinate(arr, blind)
+    new = _new(ids, arr)
+    assert len(new) == 2 and ids == new and out.cuboid("top") is arr.cuboid("top")

@@ -6,11 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+import pipeline.load_path as load_path_mod
 import pipeline.refine as refine_mod
 import pipeline.stability as stability
-from pipeline.imagine import relax_fixed
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
 from pipeline.stability import check_stability
+from tests.pipeline.priors_util import relax_fixed, run
 
 
 def _observed(c):
@@ -59,7 +60,14 @@ def _board() -> Arrangement:
 
 @pytest.mark.parametrize("make", [_decks, _overhang, _board])
 def test_relax_fixed_with_shared_work_equals_plain_checks(make, monkeypatch):
-    arr = make()
+    from pipeline.search import finalize
+
+    # as the search leaves it (the glue relaxation runs after it: the gate then judges
+    # each edit with its contacts), with the contacts listed above
+    given = make()
+    arr = finalize(given.with_(contacts=()), [c for c in given.contacts if c.type == "fixed"])
+    assert sorted((c.key, c.type) for c in arr.contacts) == \
+        sorted((c.key, c.type) for c in given.contacts)
     fast = relax_fixed(arr)
     _plain(monkeypatch)
     slow = relax_fixed(arr)
@@ -85,7 +93,7 @@ def test_cluster_load_path_from_the_memo_equals_a_fresh_pass(monkeypatch):
             calls.append(len(memo) == n)  # True: answered from the memo
         return out
 
-    monkeypatch.setattr(stability, "_balance_cluster", spy)
+    monkeypatch.setattr(load_path_mod, "_balance_cluster", spy)  # where load_path calls it
     rng = np.random.default_rng(2)
     for arr in (_shelf(4), _shelf(3, rng), _shelf(5, rng)):
         memo: dict = {}
@@ -113,7 +121,8 @@ def test_load_path_floor_gives_the_answers_of_the_full_pass(monkeypatch):
     scenes += [_decks().with_(contacts=tuple(c for c in _decks().contacts if c.type != "fixed"))]
     out, on = {}, stability.LOAD_PATH_FLOOR
     for floor in (on, np.inf):
-        monkeypatch.setattr(stability, "LOAD_PATH_FLOOR", floor)
+        for mod in (stability, load_path_mod):  # read by the load path and the solver
+            monkeypatch.setattr(mod, "LOAD_PATH_FLOOR", floor)
         proofs, res = [], []
         for arr in scenes:
             for system in _systems(arr):
@@ -204,10 +213,9 @@ def _reference_cost(group, assignment, upto=None):
 def test_search_cost_equals_the_reference_on_random_assignments():
     from eval.benchmarks.search import occluded, rooms
     from pipeline.extend import candidate_edges
-    from pipeline.imagine import repair_overlaps
     from pipeline.search import SearchStats, _Group, _groups
 
-    arr, _ = repair_overlaps(occluded(rooms(30, seed=1001), np.random.default_rng(1)))
+    arr, _ = run("overlaps", occluded(rooms(30, seed=1001), np.random.default_rng(1)))
     rng = np.random.default_rng(5)
     checked = 0
     for boxes, edges in _groups(len(arr.cuboids), candidate_edges(arr)):

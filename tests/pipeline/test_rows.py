@@ -4,10 +4,17 @@ import numpy as np
 
 from pipeline.camera import Intrinsics, look_at
 from pipeline.contacts import find_contacts
-from pipeline.extend import DepthView
+from pipeline.evidence import DepthView
 from pipeline.model import Arrangement, ObservedBox, box, ground
-from pipeline.rows import _row_order, resolve_rows
+from pipeline.priors.rows import row_order as _row_order
+from tests.pipeline.priors_util import changed
 from tests.pipeline.test_imagine import _depth_of_boxes
+
+
+def resolve_rows(arr, views=None):
+    """The ``rows`` prior alone: (arrangement, ids of the boxes of the rows it set side
+    by side, in row order)."""
+    return changed("rows", arr, views)
 
 TOP = 0.51  # the board's top face
 H = 0.25  # the books' height
@@ -41,8 +48,8 @@ def _y(c):
 
 def test_a_zigzag_row_goes_back_side_by_side():
     arr = _zigzag()
-    out, changed = resolve_rows(arr)
-    assert changed == ["a", "b", "c"]
+    out, ids = resolve_rows(arr)
+    assert ids == ["a", "b", "c"]
     a, b, c = (out.cuboid(k) for k in "abc")
     # each overlap split at its middle, the outer ends kept
     np.testing.assert_allclose(_x(a), (-0.305, -0.27), atol=1e-12)
@@ -63,8 +70,8 @@ def test_a_zigzag_row_goes_back_side_by_side():
 
 def test_flat_boxes_are_no_row():
     arr = _zigzag(flat=True)  # a keyboard and a monitor's foot lie flat, side by side
-    out, changed = resolve_rows(arr)
-    assert changed == [] and out is arr
+    out, ids = resolve_rows(arr)
+    assert ids == [] and out is arr
 
 
 def _moved(c, d):
@@ -103,8 +110,8 @@ def test_a_book_does_not_go_back_into_space_the_sensor_saw_empty():
     arr = _zigzag()
     # the scene really is what was fitted: nothing behind the last book ...
     empty = [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)]
-    out, changed = resolve_rows(arr, empty)
-    assert changed == ["a", "b", "c"]  # (still split side by side)
+    out, ids = resolve_rows(arr, empty)
+    assert ids == ["a", "b", "c"]  # (still split side by side)
     np.testing.assert_allclose(_x(out.cuboid("c")), (-0.2475, -0.205), atol=1e-12)
     np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.11), atol=1e-12)
     # ... while a book as deep as the row hides that space, and the fit goes back

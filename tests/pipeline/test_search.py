@@ -5,12 +5,42 @@ import pytest
 
 from pipeline.camera import Intrinsics, look_at
 from pipeline.contacts import find_contacts
-from pipeline.extend import DepthView, candidate_edges, prune_by_visibility
-from pipeline.imagine import imagine
+from pipeline.evidence import DepthView
+from pipeline.extend import candidate_edges, prune_by_visibility
+from pipeline.imagine import imagine as _imagine
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
+from pipeline.priors import ImagineConfig, copies
 from pipeline.refine import refine
 from pipeline.search import search
 from pipeline.stability import check_stability
+from tests.pipeline.priors_util import changed
+
+LEG_MAX_WIDTH = copies.Params().leg_max_width
+MIRROR_SLACK = copies.MIRROR_SLACK
+
+
+def imagine(arr, budget):
+    """:func:`pipeline.imagine.imagine` without depth views (a bare point cloud)."""
+    return _imagine(arr, None, ImagineConfig(budget=budget))
+
+
+def added_by(res, prior):
+    """The boxes ``prior`` added in an :func:`imagine` run (not those it changed)."""
+    return [i for i in res.report.changed_by(prior) if i in res.report.hallucinated]
+
+
+def hallucinate(arr, views):
+    """The ``copies`` prior alone: (arrangement, ids of the copies it added).  Without a
+    depth view it grows no top (nothing says where an edge was seen): it only adds."""
+    out, ids = changed("copies", arr, views)
+    if not views:
+        assert all(i not in arr.index for i in ids)
+    return out, ids
+
+
+def complete_by_mirror(arr, views):
+    """The ``mirror`` prior alone: (arrangement, ids of the parts it grew)."""
+    return changed("mirror", arr, views)
 
 
 def _types(arr):
@@ -55,7 +85,7 @@ def test_hidden_leg_bottoms_are_extended_to_the_ground():
         assert out.cuboid(f"leg{k}").size[2] == pytest.approx(0.73, abs=1e-9)
         # the observed part is kept
         np.testing.assert_allclose(out.cuboid(f"leg{k}").observed.size, [0.05, 0.05, 0.43])
-    assert res.report["fixed_chosen"] == 0
+    assert res.report.fixed_chosen == 0
 
 
 def _front_view(eye, target, depth: float) -> DepthView:
@@ -168,8 +198,8 @@ def test_visibility_rejects_extensions_into_space_seen_empty():
 def test_fourth_leg_is_hallucinated_by_symmetry():
     arr = _table(leg_gap=0.0, legs=(0, 1, 2))
     res = imagine(arr, budget=5)
-    assert len(res.report["hallucinated"]) == 1
-    new = res.arrangement.cuboid(res.report["hallucinated"][0])
+    assert len(res.report.hallucinated) == 1
+    new = res.arrangement.cuboid(res.report.hallucinated[0])
     np.testing.assert_allclose(new.center[:2], [0.55, 0.35], atol=1e-9)
     assert new.extra["hallucinated"] and new.observed is None
     assert res.arrangement.stability.stable
@@ -181,7 +211,6 @@ def test_a_shelf_side_panel_is_no_leg_to_copy_to_the_other_corners():
     # edge-on as a 6 cm sliver at the far front corner.  Taken for two legs in opposite
     # quadrants, they made the panel's half-turn copy a third side panel (5 false
     # contacts).  A part as wide as half the boards' depth is no leg
-    from pipeline.symmetry import LEG_MAX_WIDTH, hallucinate
 
     # the shelf's boxes as fitted (yaw 21.8 degrees; the boards 0.72 m long, 0.25-0.34 m
     # of their 0.355 m depth seen)
@@ -212,7 +241,6 @@ def test_brackets_hidden_under_a_board_are_copied_from_its_twin_above():
     # brackets under the lowest board are hidden by it, those under the others seen.
     # The lowest gets its twin's brackets, moved down by the boards' offset
     from pipeline.model import Support
-    from pipeline.symmetry import hallucinate
 
     wall = Support("wall:0", np.array([0.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
 
@@ -343,7 +371,6 @@ def test_missing_legs_are_placed_by_the_half_turn_whatever_the_tops_yaw():
     # so it lands where the true leg stands (mirroring in the top's frame would miss it
     # by about 2 r sin 15 degrees, 17 cm here)
     from pipeline.model import rotation_about_axis
-    from pipeline.symmetry import hallucinate
 
     R = rotation_about_axis([0, 0, 1], np.radians(15))
     top = box("top", (0, 0, 0.75), (1.2, 0.8, 0.04), object="table").with_(rotation=R)
@@ -358,7 +385,6 @@ def test_missing_legs_are_placed_by_the_half_turn_whatever_the_tops_yaw():
 
 @pytest.mark.parametrize("yaw", [0.0, 0.3, -1.2])
 def test_a_board_with_one_bracket_seen_gets_its_mirror_image_under_the_other_end(yaw):
-    from pipeline.symmetry import hallucinate
 
     board = box("board", (0.4, 0.15, 1.2), (0.8, 0.3, 0.02), object="ws", yaw=yaw)
     local = np.array([-0.3, -0.06, -0.07])
@@ -376,7 +402,6 @@ def test_a_board_with_one_bracket_seen_gets_its_mirror_image_under_the_other_end
 
 
 def test_a_part_under_the_middle_of_a_top_has_no_mirror_image():
-    from pipeline.symmetry import hallucinate
 
     top = box("top", (0, 0, 1.0), (1.0, 0.5, 0.04), object="stand")
     post = box("post", (0.1, 0, 0.49), (0.08, 0.08, 0.98), object="stand")  # 10 cm off centre
@@ -396,8 +421,8 @@ def test_cushions_grown_to_the_floor_get_the_hidden_seat_of_their_sofa():
     arr = Arrangement((back, *arms, *cushions), (ground(),))
     res = imagine(arr, budget=5)
     out = res.arrangement
-    assert res.report["hidden_supports"] == ["hidden0"]
-    assert out.stability.stable and res.report["fixed_chosen"] == 0
+    assert added_by(res, "hidden_supports") == ["hidden0"]
+    assert out.stability.stable and res.report.fixed_chosen == 0
     seat = out.cuboid("hidden0")
     assert seat.object == "sofa" and seat.extra["hallucinated"] and seat.observed is None
     np.testing.assert_allclose(seat.center, [0, 0, 0.18], atol=1e-9)
@@ -422,7 +447,7 @@ def test_a_hidden_seat_reaches_out_to_the_arms_and_back_its_cushions_fall_short_
                     object=f"cushion{k}") for k, s in enumerate((-1, 1))]
     res = imagine(Arrangement((back, *arms, *cushions), (ground(),)), budget=5)
     out = res.arrangement
-    assert res.report["hidden_supports"] == ["hidden0"] and out.stability.stable
+    assert added_by(res, "hidden_supports") == ["hidden0"] and out.stability.stable
     seat = out.cuboid("hidden0")
     assert seat.object == "sofa"
     np.testing.assert_allclose(seat.center, [0, 0, 0.18], atol=1e-9)
@@ -450,7 +475,7 @@ def test_three_cushions_in_a_row_share_one_hidden_seat():
     # three rest on one seat (the rule that compared each with the first made two)
     res = imagine(_three_cushions(), budget=5)
     out = res.arrangement
-    assert res.report["hidden_supports"] == ["hidden0"] and out.stability.stable
+    assert added_by(res, "hidden_supports") == ["hidden0"] and out.stability.stable
     seat = out.cuboid("hidden0")
     lo, hi = seat.corners().min(axis=0), seat.corners().max(axis=0)
     np.testing.assert_allclose([lo[0], hi[0]], [-0.8, 0.8], atol=1e-9)  # arm to arm
@@ -466,10 +491,10 @@ def test_a_row_whose_one_seat_would_enter_the_back_gets_one_seat_per_cushion_pai
     arr = _three_cushions(first_yaw_deg=1.5)
     res = imagine(arr, budget=5)
     out = res.arrangement
-    assert len(res.report["hidden_supports"]) == 2 and out.stability.stable
+    assert len(added_by(res, "hidden_supports")) == 2 and out.stability.stable
     assert not find_contacts(out).penetrations
     t = _types(out)
-    under = {k: {p for p in res.report["hidden_supports"] if (f"cushion{k}", p) in t}
+    under = {k: {p for p in added_by(res, "hidden_supports") if (f"cushion{k}", p) in t}
              for k in range(3)}
     assert under[0] == under[1] and len(under[0]) == 1 and len(under[2]) == 1
     assert under[2] != under[0]
@@ -481,7 +506,7 @@ def test_a_lone_box_seen_only_at_its_top_stays_one_tall_box():
     arr = Arrangement((box("crate", (0, 0, 0.55), (0.4, 0.4, 0.1), object="crate"),),
                       (ground(),))
     res = imagine(arr, budget=5)
-    assert res.report["hidden_supports"] == []
+    assert added_by(res, "hidden_supports") == []
     np.testing.assert_allclose(res.arrangement.cuboid("crate").size, [0.4, 0.4, 0.6], atol=1e-9)
     assert _types(res.arrangement) == {("crate", "ground"): "touch"}
 
@@ -491,11 +516,11 @@ def test_a_table_seen_with_two_legs_gets_the_other_two_and_stands_on_four():
     # hallucinated, and the table stands on four legs with no glue to the floor
     arr = _table(leg_gap=0.0, legs=(0, 1))
     res = imagine(arr, budget=5)
-    assert len(res.report["hallucinated"]) == 2
+    assert len(res.report.hallucinated) == 2
     got = sorted(tuple(np.round(res.arrangement.cuboid(i).center[:2], 9))
-                 for i in res.report["hallucinated"])
+                 for i in res.report.hallucinated)
     np.testing.assert_allclose(got, [(-0.55, 0.35), (0.55, 0.35)], atol=1e-9)
-    assert res.arrangement.stability.stable and res.report["fixed_chosen"] == 0
+    assert res.arrangement.stability.stable and res.report.fixed_chosen == 0
     t = _types(res.arrangement)
     assert sum(v == "touch" for k, v in t.items() if "ground" in k) == 4
 
@@ -602,7 +627,6 @@ def test_a_part_seen_in_part_grows_to_its_twins_mirror_image():
     # room-1000 of Table 1: a desk's far side panel, seen as a 13 cm strip at its front
     # edge, is as deep and tall as the near one mirrored across the top's centre, up to
     # the top's underside; the near one, the top and a panel seen whole stay
-    from pipeline.symmetry import complete_by_mirror
 
     arr = _desk()
     out, grown = complete_by_mirror(arr, [])
@@ -646,7 +670,6 @@ def test_a_strip_grows_to_the_image_of_a_sliver_twin_past_a_short_top():
     # just past the shortened top; the far panel, seen as a 6 cm wide strip at its front
     # edge, is wider than that sliver's measured thickness.  It is still the sliver's
     # twin: it grows to the image, as deep and tall as the near panel
-    from pipeline.symmetry import complete_by_mirror
 
     def desk(near_y, strip_width):
         def part(cid, center, size, points):
@@ -677,7 +700,6 @@ def test_a_part_wider_than_its_twin_does_not_grow_to_its_image():
     # top's corner where another leg's mirror image falls; grown to cover both, it would
     # span from one leg to the next.  A part whose growth would leave it wider than its
     # twin (with twice the slack) is not the twin seen in part
-    from pipeline.symmetry import MIRROR_SLACK, complete_by_mirror
 
     def part(cid, center, size, points):
         return box(cid, center, size, object="table").with_(extra={"points": points})
@@ -703,7 +725,6 @@ def test_no_leg_is_hallucinated_where_a_part_already_stands_at_the_corner():
     # room-1003 of Table 1: three legs seen whole, the fourth seen at its foot only (too
     # short to pass for a leg) a centimetre beside where the half-turn copy would go:
     # the copy made a fifth leg
-    from pipeline.symmetry import hallucinate
 
     top = box("top", (0, 0, 0.72), (1.2, 0.6, 0.03), object="table")
     legs = [box(f"leg{k}", (x, y, 0.35), (0.05, 0.05, 0.7), object="table")

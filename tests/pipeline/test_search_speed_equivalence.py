@@ -168,10 +168,10 @@ def test_refine_evaluator_equals_a_plain_check_when_the_energy_is_not_zero():
 def test_block_relaxation_gives_the_one_by_one_answer_with_fewer_checks(monkeypatch):
     from eval.benchmarks.search import occluded, rooms
     from pipeline.extend import candidate_edges
-    from pipeline.imagine import repair_overlaps
+    from pipeline.priors import run_prior
     from pipeline.search import _Group, search
 
-    arr, _ = repair_overlaps(occluded(rooms(30, seed=1001), np.random.default_rng(1)))
+    arr, _ = run_prior("overlaps", occluded(rooms(30, seed=1001), np.random.default_rng(1)))
     edges = candidate_edges(arr)
     out = {}
     for block in (True, False):
@@ -203,28 +203,29 @@ def test_load_path_memo_returns_what_a_fresh_pass_returns():
     assert hits_possible > 20 and len(memo) > 0
 
 
-def test_verdict_only_gives_the_same_verdict_and_skips_solves_it_can_prove():
+def test_verdict_only_gives_the_same_verdict_and_skips_solves_it_can_prove(monkeypatch):
+    import pipeline.load_path as load_path_mod
     import pipeline.stability as stability
 
     rng = np.random.default_rng(13)
     floors = []
-    real = stability._body_floor
+    real = load_path_mod._body_floor
 
     def spy(*args):
         floors.append(real(*args))
         return floors[-1]
 
-    stability._body_floor = spy
-    try:
-        for _ in range(30):
-            arr = _random_scene(rng)
-            full = check_stability(arr, tilt_deg=2.0)
-            fast = check_stability(arr, tilt_deg=2.0, verdict_only=True)
-            assert fast.stable == full.stable
-            if fast.stable:  # a stable answer is the full one
-                assert fast.energy == full.energy
-            else:
-                assert fast.energy >= fast.threshold
-    finally:
-        stability._body_floor = real
+    # the one-body bound, wherever it is taken: ending a load path, or proving a
+    # component cannot balance
+    for mod in (stability, load_path_mod):
+        monkeypatch.setattr(mod, "_body_floor", spy)
+    for _ in range(30):
+        arr = _random_scene(rng)
+        full = check_stability(arr, tilt_deg=2.0)
+        fast = check_stability(arr, tilt_deg=2.0, verdict_only=True)
+        assert fast.stable == full.stable
+        if fast.stable:  # a stable answer is the full one
+            assert fast.energy == full.energy
+        else:
+            assert fast.energy >= fast.threshold
     assert any(f >= 10 * 1e-5 for f in floors)  # the one-body bound was used

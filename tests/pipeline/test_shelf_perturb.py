@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from pipeline.model import Arrangement, box, ground, rotation_about_z
-from tests.pipeline.test_imagine import _depth_of_boxes
+from tests.pipeline.priors_util import accepted, changed, closed_pairs, evidence_of, run
+from tests.pipeline.test_imagine import ALIGN, _depth_of_boxes
 
 
 def _yaw_mod90(c) -> float:
@@ -19,7 +20,7 @@ def _yaw_mod90(c) -> float:
 
 def _view(boxes, eye=(0.3, -2.0, 1.6), target=(0.0, 0.0, 0.4)):
     from pipeline.camera import Intrinsics, look_at
-    from pipeline.extend import DepthView
+    from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
     T = look_at(eye, target)
@@ -32,7 +33,8 @@ def test_a_book_fitted_askew_on_a_board_takes_the_boards_yaw():
     # about as many at the board's yaw (the book's spine strip), so it takes the board's
     # yaw with its 4 cm along the board (the smaller turn here); a book lying flat on
     # the board (its top face shows its yaw) and a part of a multi-part object keep theirs
-    from pipeline.imagine import align_boxes, yaws_from_supports
+    def yaws_from_supports(arr, views):
+        return changed("support_yaw", arr, views)
 
     yaw = 0.3
     board = box("board", (0, 0, 0.5), (0.8, 0.3, 0.03), yaw=yaw, object="shelf")
@@ -44,9 +46,9 @@ def test_a_book_fitted_askew_on_a_board_takes_the_boards_yaw():
     assert abs(_yaw_mod90(out.cuboid("book")) - np.degrees(yaw)) < 1e-6
     # the 4 cm edge runs along the board again (not across it)
     assert abs(out.cuboid("book").rotation[:, 0] @ board.rotation[:, 0]) > 0.999
-    # align_boxes does it as well (after the object step)
-    out, turned = align_boxes(Arrangement((board, off), (ground(),)), views=views)
-    assert turned >= 1 and abs(_yaw_mod90(out.cuboid("book")) - np.degrees(yaw)) < 1e-6
+    # the four orientation priors in order do it as well (after the object step)
+    out, turned = changed(ALIGN, Arrangement((board, off), (ground(),)), views)
+    assert len(turned) >= 1 and abs(_yaw_mod90(out.cuboid("book")) - np.degrees(yaw)) < 1e-6
     # lying flat: not standing on a narrow end
     flat = box("flat", (0, 0, 0.5 + 0.015 + 0.02), (0.15, 0.22, 0.04),
                rotation=rotation_about_z(yaw + np.radians(40)), object="book")
@@ -67,7 +69,12 @@ def test_an_objects_parts_that_disagree_take_the_yaw_their_points_fit_together()
     # a shelf: two side panels and two boards.  Both boards come 15 degrees off and
     # outweigh the panels, so the volume-weighted mean lands 8 degrees off; the yaw the
     # points of all four fit best together is the true one.  Parts that agree keep it.
-    from pipeline.imagine import _object_yaw, _yaw_of
+    from pipeline.boxops import yaw_of as _yaw_of
+    from pipeline.priors import object_yaw
+
+    def _object_yaw(cubs, idx, yaws, mean, max_deg, views):
+        return object_yaw.object_yaw(cubs, idx, yaws, mean, object_yaw.Params(max_deg=max_deg),
+                                     evidence_of(views))
 
     yaw = 0.3
     parts = [box("p0", (-0.41, 0, 0.6), (0.02, 0.3, 1.2), object="s"),
@@ -95,7 +102,10 @@ def test_two_face_on_slabs_overlapping_are_separated_sideways_with_views():
     # behind the other; the camera saw both fronts, so with the views they give way
     # sideways and both front faces stay where they were seen
     from pipeline.contacts import find_contacts
-    from pipeline.imagine import repair_overlaps
+
+    def repair_overlaps(arr, views=None):
+        out, report = run("overlaps", arr, views)
+        return out, len(accepted(report, "overlaps"))
 
     a = box("a", (0.0, 0.0, 0.15), (0.04, 0.01, 0.3))
     b = box("b", (0.01, 0.004, 0.15), (0.04, 0.01, 0.3))
@@ -144,8 +154,11 @@ def test_a_hallucinated_box_is_not_widened_to_close_a_hidden_gap():
     # behind a crate that hides the gap.  A copy's faces were not fitted to noisy
     # points, so neither is widened to the other (that would add a contact nothing
     # suggests); observed boxes there are
-    from pipeline.imagine import close_hidden_gaps
     from pipeline.search import finalize
+
+    def close_hidden_gaps(final, views):
+        out, report = run("close_gaps", final, views)
+        return out, closed_pairs(report)
 
     crate = box("a", (0, 0.0, 0.2), (0.3, 0.3, 0.4))
     h1 = box("h1", (-0.04, 0.2, 0.15), (0.05, 0.05, 0.3)).with_(extra={"hallucinated": True})
@@ -169,7 +182,7 @@ def test_a_panel_fitted_down_to_a_boards_top_reaches_past_it_across_the_corner()
     # board's top (1 cm above it: the board hid the rest).  Across the corner the join
     # (as cheap either way round) slid the board in under the whole 7 mm panel, which
     # then stood on the board's end, out of the floor's reach; the panel now grows down past the board and the board meets its face
-    from pipeline.imagine import _corner_joins
+    from pipeline.priors.join_parts import corner_joins as _corner_joins
 
     board = box("board", (0, 0, 0.1), (0.76, 0.3, 0.04), object="s")
     panel = box("panel", (0.4035, 0, 0.13 + 0.64), (0.007, 0.3, 1.28), object="s")
@@ -191,7 +204,7 @@ def test_a_chair_back_just_behind_its_seat_rests_on_it_across_the_corner():
     # chair does not have); the seat slides in under it and it rests on the seat.  The
     # same panel with the seat's bottom near the floor (a shelf's bottom board) still
     # grows down past it
-    from pipeline.imagine import _corner_joins
+    from pipeline.priors.join_parts import corner_joins as _corner_joins
 
     def chair(seat_z):
         seat = box("seat", (0, 0, seat_z), (0.43, 0.42, 0.029), object="c")
