@@ -17,10 +17,10 @@ import sys
 import numpy as np
 import pytest
 
+from pipeline.boxops import box_samples
 from pipeline.camera import Intrinsics, look_at
 from pipeline.contacts import find_contacts
 from pipeline.errors import InputError
-from pipeline.boxops import box_samples
 from pipeline.evidence import FREE_FRACTION_MAX, DepthView, Evidence
 from pipeline.extend import candidate_edges
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
