@@ -38,6 +38,45 @@ def run_args(scene_dir: str | Path, budget: float = BUDGET) -> argparse.Namespac
         no_symmetry=False, check_engines=False, out=str(scene_dir))
 
 
+#: Pipeline stages a ``config`` may switch off (``{"disable": [...]}``), today only these.
+DISABLE_CHOICES = ("symmetry",)
+
+
+def check_config(config: dict | None) -> dict:
+    """A pipeline configuration (JSON-able overrides of the inference defaults), checked.
+
+    Today the one override is ``{"disable": ["symmetry"]}``; anything else raises
+    ``ValueError`` naming what is unknown, so a suite never runs silently unconfigured.
+    """
+    config = dict(config or {})
+    bad = sorted(set(config) - {"disable"})
+    if bad:
+        raise ValueError(f"config: unknown keys {bad}; expected 'disable'")
+    disable = config.get("disable", [])
+    if isinstance(disable, str) or not all(isinstance(d, str) for d in disable):
+        raise ValueError(f"config.disable: a list of names, got {disable!r}")
+    unknown = sorted(set(disable) - set(DISABLE_CHOICES))
+    if unknown:
+        raise ValueError(f"config.disable: unknown {unknown}; choose from {list(DISABLE_CHOICES)}")
+    return config
+
+
+def run_pipeline(scan, initial, args: argparse.Namespace, config: dict | None = None):  # noqa: ANN001
+    """Imagine the unseen for a loaded scan under ``config`` (:func:`check_config`).
+
+    The one place the suites call the inference: when ``pipeline.run.run_scan(scan,
+    config)`` and its ``ImagineConfig`` exist, this becomes that call with
+    ``ImagineConfig`` built from ``config``.  Until then ``{"disable": ["symmetry"]}``
+    maps to ``unseen run --no-symmetry``.
+    """
+    from eval.run_full import solve
+
+    config = check_config(config)
+    if "symmetry" in config.get("disable", []):
+        args = argparse.Namespace(**{**vars(args), "no_symmetry": True})
+    return solve(initial, scan, args)
+
+
 @contextlib.contextmanager
 def scratch() -> Iterator[Path]:
     """A temporary folder removed afterwards."""
@@ -107,34 +146,36 @@ def missed_at(rec_false_negatives, parts: list[str]) -> int:  # noqa: ANN001
 
 def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                noise: str = "kinect", budget: float = BUDGET, options: dict | None = None,
-               engine: str | None = None, engines: tuple | list | None = None) -> dict:
+               engine: str | None = None, engines: tuple | list | None = None,
+               config: dict | None = None) -> dict:
     """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
 
-    Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
-    ``n_gt``/``n_gt_contacts``, ``n_initial``, ``unseen`` (:func:`unseen_parts`),
-    ``fn_unseen`` (missed true contacts touching them) and :func:`summary_of`; with ``engine``
-    also ``stands`` (the result settled in that engine), with ``engines`` also
-    ``stands_in`` (engine -> whether it stands there).
+    ``config``: overrides of the inference configuration (:func:`run_pipeline`), e.g.
+    ``{"disable": ["symmetry"]}``; recorded in the result when given.
+
+    Returns :func:`eval.suites._common.score_record` (with ``unseen``: the parts of
+    :func:`unseen_parts`, ``fn_unseen``, ``n_seen``, ``n_matched_seen``) plus ``family``,
+    ``seed``, ``views``, ``n_gt``/``n_gt_contacts``, ``n_initial`` and :func:`summary_of`;
+    with ``engine`` also ``stands`` (the result settled in that engine), with ``engines``
+    also ``stands_in`` (engine -> whether it stands there).
     """
-    from eval.run_full import solve
     from eval.suites._common import score_record
 
     del rng  # the scene is a function of its seed; the pipeline is seeded by run_args
+    config = check_config(config)  # fail before the scene is made
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene", views=views, noise=noise,
                           **(options or {}))
         gt = made.truth.arrangement
         scan, initial, args = initial_from_dir(made.path, budget)
-        result = solve(initial, scan, args)
+        result = run_pipeline(scan, initial, args, config)
         unseen = unseen_parts(made.path / "scan", gt)
-    from eval.metrics import score_arrangement
-
-    rec = score_record(result.arrangement, gt, initial=initial)
-    fn = score_arrangement(result.arrangement, gt, initial=initial).optimized.false_negatives
+    rec = score_record(result.arrangement, gt, initial=initial, unseen=unseen)
     rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
                n_gt_contacts=len(gt.contacts), n_initial=len(initial.cuboids),
-               unseen=unseen, fn_unseen=missed_at(fn, unseen),
                **summary_of(result.arrangement, result.report))
+    if config:
+        rec["config"] = config
     if engine:
         rec["stands"] = settle_stands(result.arrangement, engine)
     if engines:

@@ -67,7 +67,7 @@ def paper_rows() -> list[list]:
         p = PAPER_TABLE1[name]
         rows.append([f"paper: {name}", int(p["scenes"]), f"{p['init_p']:.1f} / {p['init_r']:.1f}",
                      f"{p['init_f1']:.1f}", f"{p['opt_p']:.1f} / {p['opt_r']:.1f}",
-                     f"{p['opt_f1']:.1f}", "-", "-"])
+                     f"{p['opt_f1']:.1f}", "-", "-", "-", "-", "-"])
     return rows
 
 
@@ -123,8 +123,12 @@ def unseen_rows(single: dict, multi: list) -> list[list]:
 def run(args: argparse.Namespace) -> int:
     """Run the scenes and write Table 1 under ``args.out``."""
     from eval.suites._common import (
+        BOOTSTRAP_RESAMPLES,
+        GEOMETRY_COLUMNS,
         PR_F1_COLUMNS,
         aggregate_prf,
+        geometry_cells,
+        geometry_note,
         pct,
         plot_bars,
         pr_f1_rows,
@@ -154,8 +158,10 @@ def run(args: argparse.Namespace) -> int:
     rows += paper_rows()
     note = (f"Typed contact-graph P / R / F1 in percent, micro-averaged over the edges of a "
             f"row's scenes (seeds from {tasks[0].kwargs['seed'] if tasks else '-'}; single "
-            f"Kinect-noised view unless said).  Untyped F1 and mean IoU are for the "
-            f"optimized result.  {summary.n_ok} scenes ok, {summary.n_failed} failed.\n"
+            f"Kinect-noised view unless said).  F1 95% interval: percentile bootstrap "
+            f"over the row's scenes ({BOOTSTRAP_RESAMPLES} resamples, fixed seed).  Untyped F1 "
+            f"and the geometry are the optimized result's.  {geometry_note()}  "
+            f"{summary.n_ok} scenes ok, {summary.n_failed} failed.\n"
             + failure_note(summary))
     md = write_table(out, "table1", PR_F1_COLUMNS, rows,
                      title="Table 1: contact graph, initial vs optimized", note=note)
@@ -187,11 +193,13 @@ def run(args: argparse.Namespace) -> int:
                    pct(f1_of(results[t.id], "initial.typed")),
                    pct(f1_of(results[t.id], "optimized.typed")),
                    pct(f1_of(results[t.id], "optimized.untyped")),
+                   *geometry_cells([results[t.id]]),
                    results[t.id]["n_fixed"], int(results[t.id]["stable"])]
                   for t in tasks if t.id in results]
     write_table(out, "scenes", ["task", "family", "seed", "views", "gt cuboids",
                                 "initial cuboids", "final cuboids", "initial F1",
-                                "optimized F1", "untyped F1", "fixed", "stable"], scene_rows)
+                                "optimized F1", "untyped F1", *GEOMETRY_COLUMNS, "fixed",
+                                "stable"], scene_rows)
     bars = {}
     for fam, recs in single.items():
         bars[fam] = {"initial": 100 * aggregate_prf(recs, "initial.typed")["f1"],

@@ -62,6 +62,13 @@ def test_table1_quick(table1_serial: Path) -> None:
     assert unseen["stack"]["missed at unseen parts"] == "0"
     assert unseen["stack"]["F1 if only those were missed"] == "100.0"
     assert unseen["stack"]["optimized F1"] == rows["stack"]["optimized F1"]
+    # the geometry columns are the record's pooled sums: every stack box is seen
+    assert rec["n_seen"] == rec["n_gt"] and rec["n_matched_seen"] <= rec["n_seen"]
+    assert rows["stack"]["matched share (%)"] == f"{100 * rec['n_matched_seen'] / rec['n_seen']:.1f}"
+    assert rows["stack"]["IoU (matched)"] == f"{rec['iou_sum'] / rec['n_matched']:.3f}"
+    assert rows["stack"]["side error"] == f"{rec['side_abs'] / rec['side_len']:.3f}"
+    lo, hi = (float(x) for x in rows["all, single view"]["F1 95% interval"].split("-"))
+    assert lo <= float(rows["all, single view"]["optimized F1"]) <= hi
     assert int(unseen["stack"]["true contacts"]) == c["n_gt"]
     assert int(unseen["stack"]["missed"]) == c["n_gt"] - c["tp"]
 
