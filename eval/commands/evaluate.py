@@ -16,7 +16,9 @@ and command.json with the exact command, package versions and seed.
 --workers N runs scenes on N local processes (one thread each: OMP_NUM_THREADS and the
 BLAS thread counts default to 1), --dask tcp://HOST:PORT on a running Dask cluster; the
 numbers do not depend on either.  Exit 0, 1 when the suite's answer is
-"no" (the regression suite got worse), 2 on bad input."""
+"no" (the regression suite got worse), 2 on bad input.
+The held-out pool (single views of all ten families from seeds nobody developed on):
+  unseen eval pool --out results/pool --first-seed 100000 --n 20 --workers 2"""
 
 #: Packages whose versions command.json records (distribution names; first one installed wins).
 VERSIONED = {"unseen": ("unseen",), "numpy": ("numpy",), "scipy": ("scipy",),
@@ -54,6 +56,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="expectation file (default: eval/suites/regression_expected.json)")
     reg.add_argument("--update", action="store_true",
                      help="rewrite the expectation file with the measured figures (exit 0)")
+    pool = parser.add_argument_group("pool suite only")
+    pool.add_argument("--first-seed", type=int, default=None, metavar="S",
+                      help="held-out pool: scene seeds S .. S+n-1 of every family (--n per "
+                           "family, default 20); required, 100000 or more, a fresh range "
+                           "for each round of work")
 
 
 def package_versions() -> dict[str, str | None]:
@@ -86,6 +93,8 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
         cmd += ["--expected", str(args.expected)]
     if getattr(args, "update", False):
         cmd.append("--update")
+    if getattr(args, "first_seed", None) is not None:
+        cmd += ["--first-seed", str(args.first_seed)]
     return cmd
 
 
@@ -124,12 +133,18 @@ def run(args: argparse.Namespace) -> int:
     used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
     if used and args.suite != "regression":
         raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")
+    if getattr(args, "first_seed", None) is not None and args.suite != "pool":
+        raise InputError(f"--first-seed: only for the pool suite, not {args.suite!r}")
+    if args.suite == "pool":
+        from eval.suites.pool import seed_range
+
+        seed_range(getattr(args, "first_seed", None), args.n or 1)  # one line before any work
     if args.out.exists() and not args.out.is_dir():
         raise InputError(f"--out {args.out}: exists and is not a folder")
     args.out.mkdir(parents=True, exist_ok=True)
     cmd = canonical_command(args)
     record = {"command": shlex.join(cmd), "argv": cmd, "suite": args.suite, "seed": args.seed,
-              "n": args.n, "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
+              "n": args.n, "first_seed": getattr(args, "first_seed", None), "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
               "versions": package_versions(), "python": sys.version.split()[0], "threads": threads,
               "platform": platform.platform()}
     atomic.write_text(args.out / "command.json", json.dumps(record, indent=1) + "\n")

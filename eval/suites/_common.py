@@ -143,6 +143,25 @@ def aggregate_prf(records: Iterable[Mapping], key: str = "optimized.typed") -> d
             "macro_f1": sum(f1s) / n if n else float("nan"), "n": n}
 
 
+def seen_bound(records: Iterable[Mapping]) -> float:
+    """The typed F1 of results right about everything the scans saw (``table1_unseen``).
+
+    Every true contact is found except those touching a part the scan saw too little of
+    (``fn_unseen`` of :func:`score_record` with ``unseen``), and none is added: with
+    ``best = n_gt - fn_unseen`` summed over the records, ``2 best / (best + n_gt)``.
+    NaN when no record has the counts.
+    """
+    n_gt = fn_unseen = 0
+    for r in records:
+        c = _get(r, "optimized.typed")
+        if c is None or "fn_unseen" not in r:
+            continue
+        n_gt += int(c["n_gt"])
+        fn_unseen += int(r["fn_unseen"])
+    best = n_gt - fn_unseen
+    return 2 * best / (best + n_gt) if n_gt else float("nan")
+
+
 def geometry(records: Iterable[Mapping]) -> dict[str, float]:
     """Geometry of the matched boxes over many scenes (sums pooled, see :func:`score_record`).
 

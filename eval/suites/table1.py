@@ -99,6 +99,8 @@ def unseen_rows(single: dict, multi: list) -> list[list]:
     saw too little of to make a cuboid, the true contacts missed, those of them at such
     parts, and the F1 a result would reach with only those missed (every contact between
     seen parts right): the part of the gap the scan gave no evidence for."""
+    from eval.suites._common import seen_bound
+
     groups = list(single.items()) + [("all, single view", [r for v in single.values() for r in v])]
     if multi:
         groups.append((f"all, {MULTIVIEW} views fused", multi))
@@ -111,9 +113,8 @@ def unseen_rows(single: dict, multi: list) -> list[list]:
         tp = sum(int(r["optimized"]["typed"]["tp"]) for r in recs)
         n_pred = sum(int(r["optimized"]["typed"]["n_pred"]) for r in recs)
         fn_unseen = sum(int(r["fn_unseen"]) for r in recs)
-        best = n_gt - fn_unseen
         f1 = 2 * tp / (n_pred + n_gt) if n_pred + n_gt else float("nan")
-        bound = 2 * best / (best + n_gt) if n_gt else float("nan")
+        bound = seen_bound(recs)
         rows.append([name, len(recs), sum(int(r["n_gt"]) for r in recs),
                      sum(len(r["unseen"]) for r in recs), n_gt, n_gt - tp, fn_unseen,
                      f"{100 * f1:.1f}", f"{100 * bound:.1f}"])
