@@ -42,7 +42,7 @@ COST = {"room": 4.0, "shelf": 2.5}
 
 COLUMNS = ["family", "#scenes", "typed F1", "F1 95% interval", "F1 if right about all seen",
            "share of that reached (%)", "matched share (%)", "IoU (matched)", "side error",
-           "stands: analytic", "stands: MuJoCo", "stands: PyBullet"]
+           "stands: analytic", "stands: MuJoCo", "stands: PyBullet", "scans refused"]
 
 
 def seed_range(first_seed: int, n: int) -> tuple[int, int]:
@@ -95,6 +95,7 @@ def figures(recs: list[dict]) -> dict:
     for e in ENGINES:
         got = [bool(r["stands_in"][e]) for r in recs if e in r.get("stands_in", {})]
         out[f"stands_{e}"] = sum(got) / len(got) if got else nan
+    out["refused"] = sum(1 for r in recs if "pipeline_error" in r)
     return out
 
 
@@ -108,7 +109,7 @@ def table_row(name: str, f: dict) -> list:
     return [name, f["scenes"], pct(f["f1"]), interval_cell((f["f1_lo"], f["f1_hi"])),
             pct(f["bound"]), pct(f["bound_share"]), pct(f["matched_share"]), num(f["iou"]),
             num(f["side_error"]), pct(f["stands_analytic"], 0), pct(f["stands_mujoco"], 0),
-            pct(f["stands_pybullet"], 0)]
+            pct(f["stands_pybullet"], 0), f["refused"]]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -153,7 +154,9 @@ def run(args: argparse.Namespace) -> int:
             f"F1 of a result that misses only the true contacts at parts the scan saw too "
             f"little of (fewer than {MIN_INSTANCE_POINTS} points) and adds none; share: F1 "
             f"over that bound.  {geometry_note()}  Stands: fractions of results standing in "
-            f"the analytic check and settled in each engine.  {summary.n_ok} scenes ok, "
+            f"the analytic check and settled in each engine.  Scans refused: scenes the "
+            f"pipeline gave up on (e.g. no ground plane found), scored as an empty result "
+            f"(every true contact missed).  {summary.n_ok} scenes ok, "
             f"{summary.n_failed} failed.\n" + failure_note(summary))
     md = write_table(out, "pool", COLUMNS, rows,
                      title=f"Held-out pool (seeds {lo}-{hi})", note=note)

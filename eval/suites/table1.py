@@ -6,8 +6,10 @@ family and for all, from single Kinect-noised views, plus a multi-view row (3 vi
 the paper's KinectFusion row), printed next to the paper's figures.
 
 Scenes: ``--n`` per family (default 4; ``--quick``: 1, stack only), seeds
-:func:`eval.suites._scenes.scene_seed` (1000 + 100 * --seed + i).  Outputs under ``--out``:
-``table1.md`` / ``.csv`` (the table), ``table1_physics.md`` / ``.csv`` (per row: the
+:func:`eval.suites._scenes.scene_seed` (1000 + 100 * --seed + i).  Next to each F1: its
+95% bootstrap interval over the row's scenes, and the geometry of the matched boxes
+(matched share, IoU, side error; a box matches its part only with 3D IoU >= 0.1).
+Outputs under ``--out``: ``table1.md`` / ``.csv`` (the table), ``table1_physics.md`` / ``.csv`` (per row: the
 fraction of results that stand in the analytic check, MuJoCo and PyBullet, and the
 paper's size error, equations 5-6), ``table1_unseen.md`` / ``.csv`` (per row: the true
 parts the scans saw too little of, the missed contacts at them, and the F1 a result

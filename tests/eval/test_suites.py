@@ -296,3 +296,23 @@ def test_pool_quick(tmp_path: Path) -> None:
     f_all = rec["figures"]["all"]
     assert f_all["scenes"] == 2 and f_all["f1_lo"] <= f_all["f1"] <= f_all["f1_hi"]
     assert (tmp_path / "pool.png").stat().st_size > 0
+
+
+def test_a_scan_the_pipeline_refuses_scores_every_contact_missed(monkeypatch) -> None:
+    from eval.suites import _scenes
+    from pipeline.errors import InputError
+
+    def refuse(*args, **kwargs):
+        raise InputError("no ground plane found (test)")
+
+    monkeypatch.setattr(_scenes, "initial_from_dir", refuse)
+    rec = _scenes.scene_task(np.random.default_rng(0), "stack", 1, engines=["mujoco"])
+    n = rec["n_gt_contacts"]
+    assert rec["pipeline_error"] == "no ground plane found (test)"
+    for graph in ("optimized", "initial"):
+        assert rec[graph]["typed"] == {"tp": 0, "n_pred": 0, "n_gt": n}
+    assert rec["n_matched_seen"] == 0 and rec["n_seen"] == rec["n_gt"] - len(rec["unseen"])
+    assert rec["stable"] is False and rec["stands_in"] == {"mujoco": False}
+    from eval.suites.pool import figures
+
+    assert figures([rec])["refused"] == 1 and figures([rec])["f1"] == 0.0
