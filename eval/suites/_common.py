@@ -237,8 +237,9 @@ def bootstrap_f1(records: Sequence[Mapping], key: str = "optimized.typed", *,
     """Percentile bootstrap interval of the micro F1 over scenes.
 
     Scenes are drawn with replacement (``resamples`` times, as many as there are, from a
-    ``numpy.random.Generator`` seeded with ``seed``: the same records give the same
-    interval); each resample's F1 is ``2 tp / (n_pred + n_gt)`` of its summed counts.
+    ``numpy.random.Generator`` seeded with ``seed``); each resample's F1 is
+    ``2 tp / (n_pred + n_gt)`` of its summed counts.  The scenes' counts are sorted first,
+    so the same scenes in any order give the same interval.
 
     Returns
     -------
@@ -250,6 +251,7 @@ def bootstrap_f1(records: Sequence[Mapping], key: str = "optimized.typed", *,
     if not counts:
         return float("nan"), float("nan")
     c = np.array([[int(x["tp"]), int(x["n_pred"]) + int(x["n_gt"])] for x in counts], float)
+    c = c[np.lexsort((c[:, 1], c[:, 0]))]  # independent of the records' order
     rng = np.random.default_rng(seed)
     idx = rng.integers(0, len(c), size=(resamples, len(c)))
     tp, denom = c[idx, 0].sum(axis=1), c[idx, 1].sum(axis=1)

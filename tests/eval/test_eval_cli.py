@@ -254,6 +254,7 @@ def test_bootstrap_interval_contains_the_f1_is_repeatable_and_shrinks_with_more_
     lo, hi = _common.bootstrap_f1(recs)
     assert 0.0 <= lo < f1 < hi <= 1.0
     assert _common.bootstrap_f1(recs) == (lo, hi)  # fixed seed: the same interval
+    assert _common.bootstrap_f1(recs[::-1]) == (lo, hi)  # in any order
     assert _common.bootstrap_f1(recs, seed=1) != (lo, hi)
     lo4, hi4 = _common.bootstrap_f1(recs * 4)  # the same scenes, four times as many
     assert lo < lo4 < f1 < hi4 < hi
