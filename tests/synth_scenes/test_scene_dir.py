@@ -38,7 +38,7 @@ def test_layout_and_scene_json(stack_dir):
     meta = arr.meta
     assert meta["family"] == "stack" and meta["seed"] == 2 and meta["options"] == {"n_boxes": 5}
     assert meta["validation"] == {"stable": True, "contacts_ok": True, "analytic": True,
-                                  "engines": {"mujoco": True}}
+                                  "engines": {"mujoco": True, "pybullet": True}}
     assert meta["scan"]["views"] == 1 and meta["scan"]["noise"] == "none"
     depth = _png(out / "scan" / "depth.png")
     inst = _png(out / "scan" / "instance.png")
