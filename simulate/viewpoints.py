@@ -1,8 +1,12 @@
-"""Camera viewpoints around a scene: sampled in distance, elevation and azimuth, or given.
+"""Camera viewpoints around a scene: sampled in distance, height (or elevation) and azimuth.
 
 A viewpoint is a Kinect-like pose: the camera at ``distance`` from the scene centre (the
-centre of the cuboids' bounding box), raised by ``elevation`` above the horizontal,
-looking at the centre with the world's z up.  ``K`` views are spread evenly over the
+centre of the cuboids' bounding box), looking at the centre with the world's z up.  By
+default its eye is held at a ``height`` above the floor drawn over the range a person
+films from (crouching to arms raised, :data:`FILMING_HEIGHT`), so that views from low
+down, looking up under a table top, are as likely as views from above; the elevation
+follows from height and distance.  Given an ``elevation`` range instead, the camera is
+raised by that angle above the horizontal through the centre.  ``K`` views are spread evenly over the
 azimuth range (a KinectFusion-like sweep) from a random start.  Walls are respected: the
 camera stays in front of every wall (a room is seen from inside), moving closer along
 its ray when needed, and with walls present the default azimuths face the open side.
@@ -23,11 +27,26 @@ from pipeline.model import Arrangement, box_corners
 
 #: Keep the camera at least this far in front of any wall, metres.
 WALL_MARGIN = 0.15
+#: Eye heights above the floor a person films from, metres: crouching with the camera at
+#: knee height up to holding it above the head.
+FILMING_HEIGHT = (0.3, 2.0)
+#: Distances to the scene centre, metres: from arm's length to across a room (the
+#: Kinect's depth is useful to about 4 m; ``fit`` moves farther when the scene needs it).
+FILMING_DISTANCE = (1.0, 3.5)
+#: Steepest view in height mode: the camera never looks more than this far below or
+#: above the horizontal (a camera looking straight down has no defined roll), degrees.
+MAX_STEEPNESS_DEG = 75.0
 
 
 @dataclass(frozen=True)
 class ViewRanges:
     """Sampling ranges (closed intervals) of a viewpoint around the scene centre.
+
+    ``height`` (metres above the floor, the default :data:`FILMING_HEIGHT`) places the
+    eye at a sampled height; with ``height = None`` the camera is raised by a sampled
+    ``elevation_deg`` above the horizontal through the centre instead.  A dict naming
+    ``elevation`` (and no ``height``) selects the elevation mode.  In height mode a view
+    steeper than :data:`MAX_STEEPNESS_DEG` moves back until it is not.
 
     ``azimuth_deg = None`` means the full circle without walls, and +-75 degrees around
     the open side (the mean wall normal) with walls.  ``fit`` moves the camera back so
@@ -38,30 +57,34 @@ class ViewRanges:
     (picked at random) of the footprint's minimum-area rectangle.
     """
 
-    distance: tuple[float, float] = (1.5, 3.0)
+    distance: tuple[float, float] = FILMING_DISTANCE
     elevation_deg: tuple[float, float] = (20.0, 45.0)
     azimuth_deg: tuple[float, float] | None = None
     fit: bool = True
     max_fit_distance: float = 4.0
     facing_deg: float | None = None
+    height: tuple[float, float] | None = FILMING_HEIGHT
 
     @classmethod
     def from_dict(cls, d: dict | None) -> ViewRanges:
-        """Build from ``{"distance": (a, b), "elevation": (a, b), "azimuth": (a, b)}``."""
+        """Build from ``{"distance": (a, b), "height": (a, b) | "elevation": (a, b),
+        "azimuth": (a, b)}``."""
         if d is None:
             return cls()
         if isinstance(d, ViewRanges):
             return d
         known = {"distance", "elevation", "azimuth", "elevation_deg", "azimuth_deg", "fit",
-                 "facing", "facing_deg"}
+                 "facing", "facing_deg", "height"}
         bad = set(d) - known
         if bad:
             raise InputError(f"view ranges: unknown keys {sorted(bad)}; expected distance, "
-                             "elevation, azimuth, facing (degrees), fit")
+                             "height (m) or elevation, azimuth, facing (degrees), fit")
         out = {}
+        if ("elevation" in d or "elevation_deg" in d) and d.get("height") is None:
+            out["height"] = None  # an elevation range asks for the elevation mode
         for key, name in (("distance", "distance"), ("elevation", "elevation_deg"),
                           ("elevation_deg", "elevation_deg"), ("azimuth", "azimuth_deg"),
-                          ("azimuth_deg", "azimuth_deg")):
+                          ("azimuth_deg", "azimuth_deg"), ("height", "height")):
             if key in d and d[key] is not None:
                 v = d[key]
                 if np.isscalar(v):
@@ -72,6 +95,8 @@ class ViewRanges:
                 out[name] = (lo, hi)
         if "distance" in out and out["distance"][0] <= 0:
             raise InputError("view ranges.distance: must be positive metres")
+        if out.get("height") is not None and out["height"][0] <= 0:
+            raise InputError("view ranges.height: must be positive metres above the floor")
         if "fit" in d:
             out["fit"] = bool(d["fit"])
         for key in ("facing", "facing_deg"):
@@ -153,12 +178,18 @@ def sample_viewpoints(arr: Arrangement, rng: np.random.Generator, views: int = 1
     span = a_hi - a_lo
     start = rng.uniform(0.0, 1.0)
     az = a_lo + span * (start + np.arange(views)) / views  # evenly spread, random phase
-    el = np.deg2rad(rng.uniform(*r.elevation_deg, size=views))
+    if r.height is None:
+        el = np.deg2rad(rng.uniform(*r.elevation_deg, size=views))
+    else:
+        rise = rng.uniform(*r.height, size=views) - center[2]  # eye above the centre
     dist = rng.uniform(*r.distance, size=views)
     if r.fit:
         half_fov = np.arctan(min(intr.width / (2 * intr.fx), intr.height / (2 * intr.fy)))
         fit = min(1.1 * radius / np.sin(half_fov), r.max_fit_distance)
         dist = np.maximum(dist, fit)
+    if r.height is not None:  # step back until the view is no steeper than allowed
+        dist = np.maximum(dist, np.abs(rise) / np.sin(np.deg2rad(MAX_STEEPNESS_DEG)))
+        el = np.arcsin(rise / dist)
 
     dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
     for s in walls:  # stay in front of each wall: clamp the distance along the ray

@@ -24,6 +24,8 @@ room           floor, walls wall:0/wall:1 and a mix of the above      20-60
 =============  ====================================================  ==========
 
 (cuboid ranges seen over seeds 0-19 with default options)
+
+Every family draws its objects' proportions from :data:`synth_scenes.objects.WIDE`.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ from . import objects
 from .builder import SceneBuilder
 
 STACK_VARIANTS = ("column", "staggered", "pyramid", "piles")
+#: The proportion ranges of every family's objects.
+WIDE = objects.WIDE
 
 
 def _single(group, name: str, rng: np.random.Generator, yaw: bool = True) -> Arrangement:
@@ -61,50 +65,50 @@ def make_stack(rng: np.random.Generator, n_boxes: int | None = None,
     if variant not in STACK_VARIANTS:
         raise ValueError(f"variant: must be one of {STACK_VARIANTS}, got {variant!r}")
     if variant == "column":
-        g = objects.column(rng, n)
+        g = objects.column(rng, n, ranges=WIDE["column"])
     elif variant == "staggered":
-        g = objects.column(rng, n, staggered=True)
+        g = objects.column(rng, n, staggered=True, ranges=WIDE["column"])
     elif variant == "pyramid":
-        g = objects.pyramid(rng, n)
+        g = objects.pyramid(rng, n, ranges=WIDE["pyramid"])
     else:
-        g = objects.piles(rng, n)
+        g = objects.piles(rng, n, ranges=WIDE["column"])
     arr = _single(g, "stack", rng)
     return arr.with_(meta={**arr.meta, "variant": variant})
 
 
 def make_counterweight(rng: np.random.Generator) -> Arrangement:
     """A plank overhanging a block so far it tips alone, held down by a weight on its back end."""
-    return _single(objects.counterweight(rng), "counterweight", rng)
+    return _single(objects.counterweight(rng, WIDE["counterweight"]), "counterweight", rng)
 
 
 def make_bridge(rng: np.random.Generator) -> Arrangement:
     """Pillars carrying one or two decks, maybe with boxes on the decks."""
-    return _single(objects.bridge(rng), "bridge", rng)
+    return _single(objects.bridge(rng, WIDE["bridge"]), "bridge", rng)
 
 
 def make_table(rng: np.random.Generator, n_items: int | None = None) -> Arrangement:
     """A table (top fused to four legs) with a few things on it."""
-    return _single(objects.table(rng, n_items), "table", rng)
+    return _single(objects.table(rng, n_items, WIDE["table"]), "table", rng)
 
 
 def make_chair(rng: np.random.Generator) -> Arrangement:
     """A chair: seat, four legs and a back, fused."""
-    return _single(objects.chair(rng), "chair", rng)
+    return _single(objects.chair(rng, WIDE["chair"]), "chair", rng)
 
 
 def make_shelf(rng: np.random.Generator) -> Arrangement:
     """A free-standing bookshelf with books (some leaning) and boxes."""
-    return _single(objects.shelf(rng), "shelf", rng)
+    return _single(objects.shelf(rng, WIDE["shelf"]), "shelf", rng)
 
 
 def make_desk(rng: np.random.Generator) -> Arrangement:
     """A desk with a monitor, a keyboard and a few things."""
-    return _single(objects.desk(rng), "desk", rng)
+    return _single(objects.desk(rng, WIDE["desk"]), "desk", rng)
 
 
 def make_sofa(rng: np.random.Generator) -> Arrangement:
     """A sofa of several fused cuboids with cushions."""
-    return _single(objects.sofa(rng), "sofa", rng)
+    return _single(objects.sofa(rng, WIDE["sofa"]), "sofa", rng)
 
 
 def wall(k: int, point, normal) -> Support:
@@ -119,23 +123,25 @@ def make_wall_shelf(rng: np.random.Generator) -> Arrangement:
     yaw = float(rng.uniform(-np.pi, np.pi))
     w = wall(0, (0.0, 0.0, 0.0), (np.cos(yaw), np.sin(yaw), 0.0))
     b = SceneBuilder((ground(), w))
-    b.place_on_wall(objects.wall_shelf(rng), w, 0.0)
+    b.place_on_wall(objects.wall_shelf(rng, WIDE["wall_shelf"]), w, 0.0)
     return b.build({"family": "wall_shelf"})
 
 
 #: room object kinds: (builder, stands against a wall, weight)
 _ROOM_KINDS = {
-    "table": (objects.table, False, 3.0),
-    "chair": (objects.chair, False, 3.0),
-    "shelf": (objects.shelf, True, 2.0),
-    "wall_shelf": (objects.wall_shelf, True, 1.5),
-    "desk": (objects.desk, True, 2.0),
-    "sofa": (objects.sofa, True, 1.5),
-    "stack": (lambda rng: objects.column(rng, int(rng.integers(2, 5))), False, 1.5),
-    "pyramid": (lambda rng: objects.pyramid(rng, int(rng.integers(3, 7))), False, 1.0),
+    "table": (lambda rng: objects.table(rng, ranges=WIDE["table"]), False, 3.0),
+    "chair": (lambda rng: objects.chair(rng, WIDE["chair"]), False, 3.0),
+    "shelf": (lambda rng: objects.shelf(rng, WIDE["shelf"]), True, 2.0),
+    "wall_shelf": (lambda rng: objects.wall_shelf(rng, WIDE["wall_shelf"]), True, 1.5),
+    "desk": (lambda rng: objects.desk(rng, WIDE["desk"]), True, 2.0),
+    "sofa": (lambda rng: objects.sofa(rng, WIDE["sofa"]), True, 1.5),
+    "stack": (lambda rng: objects.column(rng, int(rng.integers(2, 5)), ranges=WIDE["column"]),
+              False, 1.5),
+    "pyramid": (lambda rng: objects.pyramid(rng, int(rng.integers(3, 7)), WIDE["pyramid"]),
+                False, 1.0),
     "box": (lambda rng: objects.box_item(rng, 0.2, 0.5), False, 1.5),
-    "counterweight": (objects.counterweight, False, 0.5),
-    "bridge": (objects.bridge, False, 0.5),
+    "counterweight": (lambda rng: objects.counterweight(rng, WIDE["counterweight"]), False, 0.5),
+    "bridge": (lambda rng: objects.bridge(rng, WIDE["bridge"]), False, 0.5),
 }
 
 #: gap kept between furniture footprints in a room, metres

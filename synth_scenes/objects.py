@@ -9,6 +9,14 @@ something (items on a table top, books on a board, a piece of furniture on the f
 
 Stability is designed in, with margins (the centre of mass of every load lies inside
 its support polygon shrunk by a margin); the engines confirm it (``synth_scenes.truth``).
+
+Proportions come from a table of ranges per builder (``ranges=``): :data:`CLASSIC`, the
+ranges the builders were first written with (the default: the demo scene draws from
+them), and :data:`WIDE`, what the scene families draw from: tables 0.4-1.1 m high, one
+to seven shelf boards, thin and thick legs and panels, low and deep sofas, and more
+things on tables, desks, shelves and chair seats, so that no rule of the method can lean
+on one family's proportions.  Lengths in metres; ``(lo, hi)`` pairs are uniform ranges,
+counts are inclusive integer ranges, ``p_*`` are probabilities.
 """
 
 from __future__ import annotations
@@ -21,6 +29,68 @@ from .builder import CLEARANCE, Group
 
 X_AXIS = np.array([1.0, 0.0, 0.0])
 Y_AXIS = np.array([0.0, 1.0, 0.0])
+
+#: The builders' first ranges (the default of every ``ranges=``; the demo scene's).
+CLASSIC: dict[str, dict] = {
+    "column": {"side": (0.15, 0.45), "height": (0.1, 0.35), "brick": ((0.2, 0.4), (0.15, 0.3),
+                                                                     (0.08, 0.2))},
+    "pyramid": {"width": (0.2, 0.4), "height": (0.12, 0.3), "depth": (0.2, 0.4)},
+    "counterweight": {"block": ((0.2, 0.4), (0.25, 0.45), (0.3, 0.7)), "length": (0.9, 1.5),
+                      "thickness": (0.03, 0.06)},
+    "bridge": {"pillar": ((0.15, 0.3), (0.2, 0.4), (0.3, 0.8)), "span": (0.4, 1.0),
+               "deck": (0.03, 0.08), "items": (0, 2)},
+    "table": {"width": (0.8, 1.6), "depth": (0.6, 0.9), "top": (0.03, 0.05),
+              "height": (0.7, 0.78), "leg": (0.04, 0.07), "inset": (0.02, 0.1), "items": (1, 4)},
+    "chair": {"width": (0.4, 0.5), "depth": (0.4, 0.5), "seat": (0.03, 0.05),
+              "height": (0.42, 0.48), "leg": (0.03, 0.05), "inset": (0.0, 0.04),
+              "back": (0.02, 0.04), "back_height": (0.35, 0.5), "p_seat_item": 0.0},
+    "shelf": {"width": (0.6, 1.1), "depth": (0.25, 0.4), "height": (0.9, 1.9),
+              "side": (0.015, 0.03), "board": (0.015, 0.03), "spacing": 0.32, "boards": (3, 5),
+              "p_box": 0.6, "boxes": (1, 1), "top_items": (0, 0)},
+    "wall_shelf": {"boards": (1, 3), "width": (0.5, 1.2), "depth": (0.18, 0.3),
+                   "board": (0.02, 0.035), "lowest": (0.9, 1.4), "gap": (0.35, 0.45),
+                   "items": (0, 2), "top_max": None},
+    "desk": {"width": (1.0, 1.6), "depth": (0.6, 0.8), "top": (0.025, 0.04),
+             "height": (0.72, 0.76), "panel": (0.02, 0.035), "drawer": (0.35, 0.45),
+             "items": (0, 2), "p_monitor": 1.0},
+    "sofa": {"width": (1.2, 2.0), "depth": (0.55, 0.7), "seat": (0.3, 0.4),
+             "arm": (0.12, 0.22), "arm_height": (0.55, 0.68), "back": (0.15, 0.25),
+             "back_height": (0.75, 0.9), "cushions": (2, 3), "cushion": (0.08, 0.14)},
+}
+
+#: What the scene families draw from (:mod:`synth_scenes.families`): wider proportions
+#: and more clutter on surfaces.
+WIDE: dict[str, dict] = {
+    "column": {"side": (0.1, 0.6), "height": (0.05, 0.45), "brick": ((0.15, 0.5), (0.1, 0.35),
+                                                                    (0.05, 0.25))},
+    "pyramid": {"width": (0.12, 0.5), "height": (0.06, 0.4), "depth": (0.12, 0.5)},
+    "counterweight": {"block": ((0.15, 0.5), (0.2, 0.5), (0.2, 0.9)), "length": (0.7, 1.8),
+                      "thickness": (0.02, 0.08)},
+    "bridge": {"pillar": ((0.1, 0.35), (0.15, 0.5), (0.2, 1.0)), "span": (0.3, 1.3),
+               "deck": (0.02, 0.1), "items": (0, 3)},
+    "table": {"width": (0.5, 2.0), "depth": (0.5, 1.1), "top": (0.02, 0.06),
+              "height": (0.4, 1.1), "leg": (0.03, 0.09), "inset": (0.0, 0.1), "items": (0, 6)},
+    "chair": {"width": (0.35, 0.6), "depth": (0.35, 0.6), "seat": (0.02, 0.06),
+              "height": (0.3, 0.65), "leg": (0.02, 0.06), "inset": (0.0, 0.05),
+              "back": (0.015, 0.05), "back_height": (0.2, 0.7), "p_seat_item": 0.3},
+    "shelf": {"width": (0.4, 1.4), "depth": (0.2, 0.5), "height": (0.5, 2.1),
+              "side": (0.012, 0.04), "board": (0.012, 0.04), "spacing": 0.25, "boards": (2, 7),
+              "p_box": 0.8, "boxes": (1, 2), "top_items": (0, 2)},
+    "wall_shelf": {"boards": (1, 4), "width": (0.3, 1.6), "depth": (0.12, 0.4),
+                   "board": (0.015, 0.045), "lowest": (0.4, 1.5), "gap": (0.28, 0.55),
+                   "items": (0, 3), "top_max": 2.3},
+    "desk": {"width": (0.8, 1.9), "depth": (0.45, 0.9), "top": (0.018, 0.05),
+             "height": (0.6, 1.05), "panel": (0.015, 0.05), "drawer": (0.3, 0.5),
+             "items": (0, 4), "p_monitor": 0.85},
+    "sofa": {"width": (0.8, 2.1), "depth": (0.5, 0.8), "seat": (0.25, 0.45),
+             "arm": (0.08, 0.22), "arm_height": (0.5, 0.8), "back": (0.1, 0.3),
+             "back_height": (0.65, 1.0), "cushions": (1, 4), "cushion": (0.06, 0.18)},
+}
+
+
+def _count(rng: np.random.Generator, lo_hi: tuple[int, int]) -> int:
+    """An integer in the inclusive range ``lo_hi``."""
+    return int(rng.integers(lo_hi[0], lo_hi[1] + 1))
 
 
 def _u(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -201,23 +271,25 @@ def _column_ok(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray, margin:
 
 
 def column(rng: np.random.Generator, n: int, staggered: bool = False, jitter: float = 0.2,
-           max_yaw: float = 0.4) -> Group:
+           max_yaw: float = 0.4, ranges: dict | None = None) -> Group:
     """A tower of ``n`` boxes, each on the one below, with random offsets and turns.
 
     ``staggered``: equal bricks alternately shifted left and right (a brick pier).
     Offsets shrink until every sub-tower's centre of mass is at least a margin inside
-    the face it rests on.
+    the face it rests on.  ``ranges``: box sizes (default ``CLASSIC["column"]``).
     """
+    r = CLASSIC["column"] if ranges is None else ranges
     if staggered:
-        brick = np.array([_u(rng, 0.2, 0.4), _u(rng, 0.15, 0.3), _u(rng, 0.08, 0.2)])
+        brick = np.array([_u(rng, *r["brick"][0]), _u(rng, *r["brick"][1]),
+                          _u(rng, *r["brick"][2])])
         sizes = np.tile(brick, (n, 1))
         shift = _u(rng, 0.12, 0.22) * brick[0]
         offsets = np.zeros((n, 2))
         offsets[:, 0] = shift * np.where(np.arange(n) % 2 == 0, 1.0, -1.0)
         yaws = np.zeros(n)
     else:
-        sizes = np.column_stack([rng.uniform(0.15, 0.45, n), rng.uniform(0.15, 0.45, n),
-                                 rng.uniform(0.1, 0.35, n)])
+        sizes = np.column_stack([rng.uniform(*r["side"], n), rng.uniform(*r["side"], n),
+                                 rng.uniform(*r["height"], n)])
         offsets = rng.uniform(-jitter, jitter, (n, 2)) * sizes[:, :2].min(axis=1, keepdims=True)
         offsets[0] = 0.0
         yaws = np.where(rng.random(n) < 0.5, rng.uniform(-max_yaw, max_yaw, n), 0.0)
@@ -243,30 +315,32 @@ def column(rng: np.random.Generator, n: int, staggered: bool = False, jitter: fl
     return g
 
 
-def pyramid(rng: np.random.Generator, n: int) -> Group:
+def pyramid(rng: np.random.Generator, n: int, ranges: dict | None = None) -> Group:
     """Rows of boxes, each upper box bridging the gap between two below (n boxes in all).
 
     The boxes of a row either stand apart or (40 %) touch side by side, which gives the
     densely connected graphs of the paper's stacking scenes (valence up to 6).
+    ``ranges``: box sizes (default ``CLASSIC["pyramid"]``).
     """
+    r = CLASSIC["pyramid"] if ranges is None else ranges
     b = 1
     while b * (b + 1) // 2 < n:
         b += 1
-    w = _u(rng, 0.2, 0.4)
+    w = _u(rng, *r["width"])
     # touching rows (gap 0: side contacts, valence up to 6) or rows with gaps
     gap = 0.0 if rng.random() < 0.4 else max(0.03, _u(rng, 0.1, 0.35) * w)
     g = Group()
     z, remaining, m = 0.0, n, b
     below: list[int] = []
     while remaining > 0 and m > 0:
-        h = _u(rng, 0.12, 0.3)
+        h = _u(rng, *r["height"])
         slots = np.arange(m)
         if remaining < m:
             slots = np.sort(rng.choice(m, size=remaining, replace=False))
         row: list[int] = []
         for j in slots:
             x = (j - (m - 1) / 2) * (w + gap)
-            d = _u(rng, 0.2, 0.4)
+            d = _u(rng, *r["depth"])
             k = g.add((x, _u(rng, -0.02, 0.02), z + h / 2), (w, d, h), g.new_label("box"))
             if not below:
                 g.touch(k, "ground")
@@ -283,14 +357,16 @@ def pyramid(rng: np.random.Generator, n: int) -> Group:
     return g
 
 
-def piles(rng: np.random.Generator, n: int) -> Group:
-    """``n`` boxes as several short towers (1-4 boxes each) scattered on the floor."""
+def piles(rng: np.random.Generator, n: int, ranges: dict | None = None) -> Group:
+    """``n`` boxes as several short towers (1-4 boxes each) scattered on the floor.
+
+    ``ranges``: box sizes of the towers (:func:`column`)."""
     from shapely.geometry import box as shapely_box
 
     heights = []
     while sum(heights) < n:
         heights.append(int(min(rng.integers(1, 5), n - sum(heights))))
-    towers = [column(rng, h) for h in heights]
+    towers = [column(rng, h, ranges=ranges) for h in heights]
     side = 0.7 * np.sqrt(len(towers)) + 0.4
     while True:
         placed: list = []
@@ -307,16 +383,18 @@ def piles(rng: np.random.Generator, n: int) -> Group:
 
 
 # ---------------------------------------------------------------------------- structures
-def counterweight(rng: np.random.Generator) -> Group:
+def counterweight(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     """A plank on a block, overhanging so far it tips alone, held by a weight on its back end.
 
     The plank's own centre is beyond the block's edge; the weight's mass is solved so the
     combined centre of mass lies at a random point in the middle half of the block top.
     Optionally a load hangs on the overhanging tip too (then the weight is heavier).
+    ``ranges``: block, plank length and thickness (default ``CLASSIC["counterweight"]``).
     """
+    r = CLASSIC["counterweight"] if ranges is None else ranges
     for _ in range(100):
-        bw, bd, bh = _u(rng, 0.2, 0.4), _u(rng, 0.25, 0.45), _u(rng, 0.3, 0.7)
-        L, t = _u(rng, 0.9, 1.5), _u(rng, 0.03, 0.06)
+        bw, bd, bh = (_u(rng, *r["block"][k]) for k in range(3))
+        L, t = _u(rng, *r["length"]), _u(rng, *r["thickness"])
         pd = _u(rng, 0.2, min(bd, 0.35))
         xp = bw / 2 + _u(rng, 0.06, 0.2)            # plank centre beyond the edge
         x_back = xp - L / 2
@@ -357,13 +435,17 @@ def counterweight(rng: np.random.Generator) -> Group:
     raise RuntimeError("counterweight: no feasible sample in 100 tries")  # pragma: no cover
 
 
-def bridge(rng: np.random.Generator) -> Group:
-    """Pillars (one box or two stacked) carrying decks; 1 or 2 spans, maybe boxes on top."""
+def bridge(rng: np.random.Generator, ranges: dict | None = None) -> Group:
+    """Pillars (one box or two stacked) carrying decks; 1 or 2 spans, maybe boxes on top.
+
+    ``ranges``: pillar, span, deck thickness, items per deck (default ``CLASSIC["bridge"]``).
+    """
+    r = CLASSIC["bridge"] if ranges is None else ranges
     spans = 1 if rng.random() < 0.65 else 2
-    pw, pdp = _u(rng, 0.15, 0.3), _u(rng, 0.2, 0.4)
-    ph = _u(rng, 0.3, 0.8)
+    pw, pdp = _u(rng, *r["pillar"][0]), _u(rng, *r["pillar"][1])
+    ph = _u(rng, *r["pillar"][2])
     stacked = rng.random() < 0.4
-    span = _u(rng, 0.4, 1.0)
+    span = _u(rng, *r["span"])
     xs = (np.arange(spans + 1) - spans / 2) * (span + pw)
     g = Group()
     tops = []
@@ -378,7 +460,7 @@ def bridge(rng: np.random.Generator) -> Group:
             k = g.add((x, 0, ph / 2), (pw, pdp, ph), g.new_label("pillar"))
             g.touch(k, "ground")
             tops.append(k)
-    t = _u(rng, 0.03, 0.08)
+    t = _u(rng, *r["deck"])
     dd = pdp * _u(rng, 0.8, 1.2)
     for s in range(spans):
         left = xs[s] - (pw / 2) * _u(rng, 0.2, 1.0) if s == 0 else xs[s] + 0.02
@@ -388,7 +470,7 @@ def bridge(rng: np.random.Generator) -> Group:
                      g.new_label("deck"))
         g.touch(deck, tops[s])
         g.touch(deck, tops[s + 1])
-        n_items = int(rng.integers(0, 3))
+        n_items = _count(rng, r["items"])
         place_items(rng, g, deck, [box_item(rng, 0.06, min(0.2, dd - 0.07))
                                    for _ in range(n_items)],
                     (left, right, -dd / 2, dd / 2), margin=0.02)
@@ -396,11 +478,16 @@ def bridge(rng: np.random.Generator) -> Group:
 
 
 # ---------------------------------------------------------------------------- furniture
-def table(rng: np.random.Generator, n_items: int | None = None) -> Group:
-    """A top fused to four legs (legs touch the floor) and a few things on the top."""
-    W, D = _u(rng, 0.8, 1.6), _u(rng, 0.6, 0.9)
-    T, H = _u(rng, 0.03, 0.05), _u(rng, 0.7, 0.78)
-    leg, inset = _u(rng, 0.04, 0.07), _u(rng, 0.02, 0.1)
+def table(rng: np.random.Generator, n_items: int | None = None,
+          ranges: dict | None = None) -> Group:
+    """A top fused to four legs (legs touch the floor) and a few things on the top.
+
+    ``ranges``: sizes and the number of things (default ``CLASSIC["table"]``).
+    """
+    r = CLASSIC["table"] if ranges is None else ranges
+    W, D = _u(rng, *r["width"]), _u(rng, *r["depth"])
+    T, H = _u(rng, *r["top"]), _u(rng, *r["height"])
+    leg, inset = _u(rng, *r["leg"]), _u(rng, *r["inset"])
     g = Group()
     top = g.add((0, 0, H - T / 2), (W, D, T), "table")
     for sx in (-1, 1):
@@ -409,16 +496,21 @@ def table(rng: np.random.Generator, n_items: int | None = None) -> Group:
                        (H - T) / 2), (leg, leg, H - T), "table")
             g.fix(k, top)
             g.touch(k, "ground")
-    n_items = int(rng.integers(1, 5)) if n_items is None else n_items
+    n_items = _count(rng, r["items"]) if n_items is None else n_items
     place_items(rng, g, top, surface_items(rng, n_items), (-W / 2, W / 2, -D / 2, D / 2))
     return g
 
 
-def chair(rng: np.random.Generator) -> Group:
-    """Seat fused to four legs and a back (a board, or two posts and a rail); faces -y."""
-    W, D = _u(rng, 0.4, 0.5), _u(rng, 0.4, 0.5)
-    T, H = _u(rng, 0.03, 0.05), _u(rng, 0.42, 0.48)
-    leg, inset = _u(rng, 0.03, 0.05), _u(rng, 0.0, 0.04)
+def chair(rng: np.random.Generator, ranges: dict | None = None) -> Group:
+    """Seat fused to four legs and a back (a board, or two posts and a rail); faces -y.
+
+    ``ranges``: sizes, and ``p_seat_item``, the chance of a thing on the seat (default
+    ``CLASSIC["chair"]``).
+    """
+    r = CLASSIC["chair"] if ranges is None else ranges
+    W, D = _u(rng, *r["width"]), _u(rng, *r["depth"])
+    T, H = _u(rng, *r["seat"]), _u(rng, *r["height"])
+    leg, inset = _u(rng, *r["leg"]), _u(rng, *r["inset"])
     g = Group()
     seat = g.add((0, 0, H - T / 2), (W, D, T), "chair")
     for sx in (-1, 1):
@@ -427,7 +519,7 @@ def chair(rng: np.random.Generator) -> Group:
                        (H - T) / 2), (leg, leg, H - T), "chair")
             g.fix(k, seat)
             g.touch(k, "ground")
-    bt, bh = _u(rng, 0.02, 0.04), _u(rng, 0.35, 0.5)
+    bt, bh = _u(rng, *r["back"]), _u(rng, *r["back_height"])
     yb = D / 2 - bt / 2
     if rng.random() < 0.5:
         back = g.add((0, yb, H + bh / 2), (W, bt, bh), "chair")
@@ -440,6 +532,9 @@ def chair(rng: np.random.Generator) -> Group:
             k = g.add((sx * (W / 2 - pw / 2), yb, H + ph / 2), (pw, bt, ph), "chair")
             g.fix(k, seat)
             g.fix(rail, k)
+    if r["p_seat_item"] > 0 and rng.random() < r["p_seat_item"]:
+        place_items(rng, g, seat, surface_items(rng, 1, ("box", "book")),
+                    (-W / 2, W / 2, -D / 2, D / 2 - bt - CLEARANCE), margin=0.02)
     return g
 
 
@@ -482,22 +577,25 @@ def _book_row(rng: np.random.Generator, g: Group, board: int, x0: float, x1: flo
     return x
 
 
-def shelf(rng: np.random.Generator) -> Group:
+def shelf(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     """Two sides on the floor with boards fused between them; books (some leaning) and boxes.
 
-    Faces -y (its back is at the largest y, to stand against a wall).
+    Faces -y (its back is at the largest y, to stand against a wall).  ``ranges``: sizes,
+    board count and least spacing, boxes per board and things on top (default
+    ``CLASSIC["shelf"]``).
     """
-    W, D, H = _u(rng, 0.6, 1.1), _u(rng, 0.25, 0.4), _u(rng, 0.9, 1.9)
-    s = _u(rng, 0.015, 0.03)
-    t = _u(rng, 0.015, 0.03)
+    r = CLASSIC["shelf"] if ranges is None else ranges
+    W, D, H = _u(rng, *r["width"]), _u(rng, *r["depth"]), _u(rng, *r["height"])
+    s = _u(rng, *r["side"])
+    t = _u(rng, *r["board"])
     g = Group()
     sides = []
     for sx in (-1, 1):
         k = g.add((sx * (W / 2 - s / 2), 0, H / 2), (s, D, H), "shelf")
         g.touch(k, "ground")
         sides.append(k)
-    n = max(2, int((H - 0.1) // 0.32) + 1)
-    n = min(n, int(rng.integers(3, 6)))
+    n = max(2, int((H - 0.1) // r["spacing"]) + 1)
+    n = min(n, _count(rng, r["boards"]))
     bottom = _u(rng, 0.04, 0.1)
     zs = np.linspace(bottom, H - t, n)
     boards = []
@@ -511,22 +609,32 @@ def shelf(rng: np.random.Generator) -> Group:
         clear = zs[i + 1] - (zs[i] + t)
         x_end = _book_row(rng, g, k, inner0, inner1, D, clear, sides[0])
         room_h = clear - 0.03
-        if rng.random() < 0.6 and room_h > 0.08:
-            items = [box_item(rng, 0.06, min(0.25, room_h))]
+        if rng.random() < r["p_box"] and room_h > 0.08:
+            n_box = 1 if r["boxes"][1] <= 1 else _count(rng, r["boxes"])
+            items = [box_item(rng, 0.06, min(0.25, room_h)) for _ in range(n_box)]
             place_items(rng, g, k, items, (x_end + CLEARANCE, inner1, -D / 2, D / 2),
                         margin=0.01, yaw_range=(-0.3, 0.3))
+    if r["top_items"][1] > 0:
+        place_items(rng, g, boards[-1], surface_items(rng, _count(rng, r["top_items"])),
+                    (inner0, inner1, -D / 2, D / 2), margin=CLEARANCE, yaw_range=(-0.3, 0.3))
     return g
 
 
-def wall_shelf(rng: np.random.Generator) -> Group:
+def wall_shelf(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     """Boards fused to the wall y = 0 (hanging, no legs), maybe on brackets; things on them.
 
     Some boards hold a book leaning against the wall (a ``touch`` with the wall).
+    ``ranges``: board count and sizes, height of the lowest board, the gap between
+    boards, things per board and ``top_max``, the highest a board may hang (default
+    ``CLASSIC["wall_shelf"]``).
     """
-    n = int(rng.integers(1, 4))
-    W, D, t = _u(rng, 0.5, 1.2), _u(rng, 0.18, 0.3), _u(rng, 0.02, 0.035)
-    z0 = _u(rng, 0.9, 1.4)
-    gap = _u(rng, 0.35, 0.45)
+    r = CLASSIC["wall_shelf"] if ranges is None else ranges
+    n = _count(rng, r["boards"])
+    W, D, t = _u(rng, *r["width"]), _u(rng, *r["depth"]), _u(rng, *r["board"])
+    z0 = _u(rng, *r["lowest"])
+    gap = _u(rng, *r["gap"])
+    if r["top_max"] is not None:  # no board above the reach of a hand
+        n = max(1, min(n, int((r["top_max"] - z0) // gap) + 1))
     brackets = rng.random() < 0.5
     g = Group()
     for i in range(n):
@@ -555,7 +663,7 @@ def wall_shelf(rng: np.random.Generator) -> Group:
                 g.touch(k, board)
                 g.touch(k, "wall")
                 x_free = -W / 2 + 0.03 + w + CLEARANCE
-        items = [it for it in surface_items(rng, int(rng.integers(0, 3)))
+        items = [it for it in surface_items(rng, _count(rng, r["items"]))
                  if it.corners()[..., 2].max() < clear - 0.03]
         place_items(rng, g, board, items, (x_free, W / 2, CLEARANCE, D), margin=0.01,
                     yaw_range=(-0.3, 0.3))
@@ -578,45 +686,53 @@ def monitor(rng: np.random.Generator) -> Group:
     return g
 
 
-def desk(rng: np.random.Generator) -> Group:
-    """A top on two side panels (or a panel and a drawer block), fused; monitor and things."""
-    W, D = _u(rng, 1.0, 1.6), _u(rng, 0.6, 0.8)
-    T, H = _u(rng, 0.025, 0.04), _u(rng, 0.72, 0.76)
-    p = _u(rng, 0.02, 0.035)
+def desk(rng: np.random.Generator, ranges: dict | None = None) -> Group:
+    """A top on two side panels (or a panel and a drawer block), fused; monitor and things.
+
+    ``ranges``: sizes, things besides the keyboard, and ``p_monitor`` (default
+    ``CLASSIC["desk"]``).
+    """
+    r = CLASSIC["desk"] if ranges is None else ranges
+    W, D = _u(rng, *r["width"]), _u(rng, *r["depth"])
+    T, H = _u(rng, *r["top"]), _u(rng, *r["height"])
+    p = _u(rng, *r["panel"])
     g = Group()
     top = g.add((0, 0, H - T / 2), (W, D, T), "desk")
     left = g.add((-W / 2 + p / 2, 0, (H - T) / 2), (p, D, H - T), "desk")
     if rng.random() < 0.5:
         right = g.add((W / 2 - p / 2, 0, (H - T) / 2), (p, D, H - T), "desk")
     else:
-        dw = _u(rng, 0.35, 0.45)
+        dw = _u(rng, *r["drawer"])
         right = g.add((W / 2 - dw / 2, 0.02, (H - T) / 2), (dw, D - 0.04, H - T), "desk")
     for k in (left, right):
         g.fix(k, top)
         g.touch(k, "ground")
     placed: list = []
-    place_items(rng, g, top, [monitor(rng)], (-W / 2, W / 2, 0.0, D / 2), margin=0.02,
-                yaw_range=(-0.15, 0.15), placed=placed)
+    if r["p_monitor"] >= 1.0 or rng.random() < r["p_monitor"]:
+        place_items(rng, g, top, [monitor(rng)], (-W / 2, W / 2, 0.0, D / 2), margin=0.02,
+                    yaw_range=(-0.15, 0.15), placed=placed)
     kb = Group()
     ks = np.array([_u(rng, 0.38, 0.46), _u(rng, 0.12, 0.16), _u(rng, 0.02, 0.03)])
     kb.touch(kb.add((0, 0, ks[2] / 2), ks, "keyboard"), "ground")
-    items = [kb, *surface_items(rng, int(rng.integers(0, 3)))]
+    items = [kb, *surface_items(rng, _count(rng, r["items"]))]
     place_items(rng, g, top, items, (-W / 2, W / 2, -D / 2, D / 2), margin=0.02,
                 yaw_range=(-0.3, 0.3), placed=placed)
     return g
 
 
-def sofa(rng: np.random.Generator) -> Group:
+def sofa(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     """Seat block, back and two arms fused (all on the floor), seat cushions, maybe back cushions.
 
     Back cushions lean on the back with their foot on the seat block itself, in a strip
     behind the (then shallower) seat cushions.  (Standing them on the seat cushions
     instead let the seat cushions slide 2 cm in PyBullet, though statics and MuJoCo
-    agree they hold.)  Faces -y (back at the largest y).
+    agree they hold.)  Faces -y (back at the largest y).  ``ranges``: sizes and the
+    number of seat cushions (default ``CLASSIC["sofa"]``).
     """
-    W, D, h = _u(rng, 1.2, 2.0), _u(rng, 0.55, 0.7), _u(rng, 0.3, 0.4)
-    aw, ah = _u(rng, 0.12, 0.22), _u(rng, 0.55, 0.68)
-    bd, bh = _u(rng, 0.15, 0.25), _u(rng, 0.75, 0.9)
+    r = CLASSIC["sofa"] if ranges is None else ranges
+    W, D, h = _u(rng, *r["width"]), _u(rng, *r["depth"]), _u(rng, *r["seat"])
+    aw, ah = _u(rng, *r["arm"]), _u(rng, *r["arm_height"])
+    bd, bh = _u(rng, *r["back"]), _u(rng, *r["back_height"])
     g = Group()
     seat = g.add((0, 0, h / 2), (W, D, h), "sofa")
     back = g.add((0, D / 2 + bd / 2, bh / 2), (W + 2 * aw, bd, bh), "sofa")
@@ -627,8 +743,8 @@ def sofa(rng: np.random.Generator) -> Group:
     for a in arms:
         g.fix(a, seat)
         g.fix(a, back)
-    n = int(rng.integers(2, 4))
-    ch = _u(rng, 0.08, 0.14)
+    n = _count(rng, r["cushions"])
+    ch = _u(rng, *r["cushion"])
     cw = W / n
     with_back = rng.random() < 0.6
     bt, bch = _u(rng, 0.06, 0.1), _u(rng, 0.35, 0.45)

@@ -25,7 +25,7 @@ from pathlib import Path
 from pipeline.arrangement_io import write_arrangement
 from pipeline.errors import InputError
 
-from .truth import GroundTruth, sample_scene, scene_rngs
+from .truth import TRUTH_ENGINES, GroundTruth, sample_scene, scene_rngs
 
 NOISE_CHOICES = ("kinect", "none")
 RENDERERS = ("mujoco", "pybullet")
@@ -43,7 +43,7 @@ class SceneDir:
 
 def make_scene_dir(family: str, out: str | os.PathLike, seed: int = 0, *, views: int = 1,
                    noise: str = "kinect", renderer: str = "mujoco",
-                   engines: tuple[str, ...] = ("mujoco",), view_ranges: dict | None = None,
+                   engines: tuple[str, ...] = TRUTH_ENGINES, view_ranges: dict | None = None,
                    intrinsics=None, max_attempts: int | None = None,
                    write_invalid: bool = False, **options) -> SceneDir:
     """Sample a valid scene of ``family`` from ``seed``, scan it, write the directory.

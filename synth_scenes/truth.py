@@ -7,8 +7,9 @@ valid, checked three ways:
 * geometry: the listed contacts are exactly the touching pairs that
   :func:`pipeline.contacts.find_contacts` finds, and nothing interpenetrates;
 * analytic statics: :func:`pipeline.stability.check_stability` says stable;
-* an engine: :func:`simulate.engines.settle` in MuJoCo (default; PyBullet too on
-  request) leaves every cuboid within its motion thresholds.
+* the engines: :func:`simulate.engines.settle` in MuJoCo and PyBullet
+  (:data:`TRUTH_ENGINES`, the engines the benchmark settles results in) leaves every
+  cuboid within its motion thresholds.
 
 The ground truth keeps the poses *as built* (the engines only judge: settled poses
 carry solver jitter).  A scene that fails is rejected and the family is sampled again
@@ -27,6 +28,11 @@ from pipeline.model import Arrangement
 
 #: Attempts before :func:`sample_scene` gives up (every family needs 1-2 on average).
 MAX_ATTEMPTS = 25
+#: Engines a scene must stand in to become ground truth (besides analytic statics).
+#: PyBullet too: with the widened proportions one sofa in a hundred (seed 18) that
+#: statics and MuJoCo hold tipped over in PyBullet, and the suites settle every result
+#: in both engines.
+TRUTH_ENGINES = ("mujoco", "pybullet")
 
 
 @dataclass(frozen=True)
@@ -63,7 +69,7 @@ class Validation:
                 "analytic": self.analytic, "engines": dict(self.engines)}
 
 
-def validate(arr: Arrangement, engines: tuple[str, ...] = ("mujoco",), analytic: bool = True,
+def validate(arr: Arrangement, engines: tuple[str, ...] = TRUTH_ENGINES, analytic: bool = True,
              mu: float = DEFAULT_MU) -> Validation:
     """Check geometry, analytic statics and settling in ``engines`` (cheapest first, stop early).
 
@@ -148,7 +154,7 @@ def scene_rngs(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
 
 
 def sample_scene(family: str, rng: np.random.Generator, *, seed: int | None = None,
-                 engines: tuple[str, ...] = ("mujoco",), analytic: bool = True,
+                 engines: tuple[str, ...] = TRUTH_ENGINES, analytic: bool = True,
                  max_attempts: int = MAX_ATTEMPTS, mu: float = DEFAULT_MU,
                  **options) -> GroundTruth:
     """Sample ``family`` from ``rng`` until a scene passes :func:`validate`.

@@ -63,7 +63,8 @@ def _make(args: argparse.Namespace, tmp: Path, out: Path):
     with Progress(5, "unseen demo") as bar:
         bar.update(0, "synthesizing the scene")
         # the demo camera looks from the front, so the table hides the tower's lower boxes
-        ranges = {"azimuth": (-115.0, -65.0), "elevation": (15.0, 25.0)} \
+        ranges = {"azimuth": (-115.0, -65.0), "elevation": (15.0, 25.0),
+                  "distance": (1.5, 3.0)} \
             if args.family == "demo" else None
         made = make_scene_dir(args.family, scene_dir, seed=args.seed, view_ranges=ranges)
         if made.truth.status != "ok":

@@ -18,7 +18,9 @@ and command.json with the exact command, package versions and seed.
 --workers N runs scenes on N local processes (one thread each: OMP_NUM_THREADS and the
 BLAS thread counts default to 1), --dask tcp://HOST:PORT on a running Dask cluster; the
 numbers do not depend on either.  Exit 0, 1 when the suite's answer is
-"no" (the regression suite got worse), 2 on bad input."""
+"no" (the regression suite got worse), 2 on bad input.
+The held-out pool (single views of all ten families from seeds nobody developed on):
+  unseen eval pool --out results/pool --first-seed 100000 --n 20 --workers 2"""
 
 #: Packages whose versions command.json records (distribution names; first one installed wins).
 VERSIONED = {"unseen": ("unseen",), "numpy": ("numpy",), "scipy": ("scipy",),
@@ -50,11 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="run on an existing Dask cluster, e.g. tcp://10.0.0.5:8786")
     parser.add_argument("--quick", action="store_true", help="a small, fast version (CI)")
     abl = parser.add_argument_group("ablation suite only")
-    abl.add_argument("--pool-seed", type=int, default=None, metavar="S",
-                     help="first seed of the held-out pool (default 300000; use a fresh one "
-                          "for each round of work)")
     abl.add_argument("--pool-n", type=int, default=None, metavar="N",
-                     help="held-out scenes per family (default 20)")
+                     help="held-out scenes per family (default 20; --n is the development "
+                          "scenes per family, default 4)")
     reg = parser.add_argument_group("regression suite only")
     reg.add_argument("--only", nargs="+", default=None, metavar="CASE",
                      help="check only these cases (names in eval/suites/regression.py)")
@@ -62,6 +62,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="expectation file (default: eval/suites/regression_expected.json)")
     reg.add_argument("--update", action="store_true",
                      help="rewrite the expectation file with the measured figures (exit 0)")
+    pool = parser.add_argument_group("pool and ablation suites only")
+    pool.add_argument("--first-seed", type=int, default=None, metavar="S",
+                      help="held-out pool: scene seeds S .. S+n-1 of every family (--n per "
+                           "family for pool, --pool-n for ablation; default 20); required, "
+                           "100000 or more, a fresh range for each round of work")
 
 
 def package_versions() -> dict[str, str | None]:
@@ -88,7 +93,7 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
     cmd += ["--dask", args.dask] if args.dask else ["--workers", str(args.workers)]
     if args.quick:
         cmd.append("--quick")
-    for name in ("pool_seed", "pool_n"):
+    for name in ("pool_n",):
         if getattr(args, name, None) is not None:
             cmd += ["--" + name.replace("_", "-"), str(getattr(args, name))]
     if getattr(args, "only", None):
@@ -97,6 +102,8 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
         cmd += ["--expected", str(args.expected)]
     if getattr(args, "update", False):
         cmd.append("--update")
+    if getattr(args, "first_seed", None) is not None:
+        cmd += ["--first-seed", str(args.first_seed)]
     return cmd
 
 
@@ -135,15 +142,20 @@ def run(args: argparse.Namespace) -> int:
     used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
     if used and args.suite != "regression":
         raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")
-    used = [f"--{n.replace('_', '-')}" for n in ("pool_seed", "pool_n")
+    used = [f"--{n.replace('_', '-')}" for n in ("pool_n",)
             if getattr(args, n, None) is not None]
     if used and args.suite != "ablation":
         raise InputError(f"{', '.join(used)}: only for the ablation suite, not {args.suite!r}")
-    for n in ("pool_seed", "pool_n"):
-        v = getattr(args, n, None)
-        if v is not None and v < (0 if n == "pool_seed" else 1):
-            raise InputError(f"--{n.replace('_', '-')}: must be "
-                             f"{'non-negative' if n == 'pool_seed' else 'at least 1'}, got {v}")
+    if getattr(args, "pool_n", None) is not None and args.pool_n < 1:
+        raise InputError(f"--pool-n: must be at least 1, got {args.pool_n}")
+    if getattr(args, "first_seed", None) is not None and args.suite not in ("pool", "ablation"):
+        raise InputError(f"--first-seed: only for the pool and ablation suites, not "
+                         f"{args.suite!r}")
+    if args.suite in ("pool", "ablation") and not args.quick:
+        from eval.suites.pool import seed_range
+
+        n = (args.n or 1) if args.suite == "pool" else (args.pool_n or 1)
+        seed_range(getattr(args, "first_seed", None), n)  # one line before any work
     from pipeline.outdir import check_out
 
     check_out(args.out)
@@ -153,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     cmd = canonical_command(args)
     record = {"command": shlex.join(cmd), "argv": cmd, "suite": args.suite, "seed": args.seed,
-              "n": args.n, "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
+              "n": args.n, "first_seed": getattr(args, "first_seed", None), "quick": bool(args.quick), "workers": args.workers, "dask": args.dask,
               "versions": package_versions(), "python": sys.version.split()[0], "threads": threads,
               "platform": platform.platform()}
     record_path = args.out / "command.json"

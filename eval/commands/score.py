@@ -9,7 +9,9 @@ from pathlib import Path
 EPILOG = """\
 GT is a scene directory (its scene.json is the truth) or an arrangement.json.
 Predicted cuboids match true ones through the scan's instance ids when they carry
-them (extra "instance"), else by 3D IoU with Hungarian assignment.  Reported:
+them (extra "instance"), else by 3D IoU with Hungarian assignment; every match needs a
+3D IoU of at least --min-iou (default 0.1): a box that names a part it does not overlap
+is unmatched, its contacts count as false and the part's as missed.  Reported:
 contact-graph precision/recall/F1 over typed edges (same pair, same type) and untyped
 edges, for the optimized graph and the initial one (every touching pair among the
 observed boxes, all 'touch'), the paper's size error (equations 5-6) and per-cuboid IoU.
@@ -27,7 +29,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="edges of a graph: listed contacts, touching geometry, or both "
                              "(default: union)")
     parser.add_argument("--min-iou", type=float, default=None,
-                        help="smallest IoU for an IoU match (default 0.05)")
+                        help="smallest 3D IoU of any match, by instance id or by IoU "
+                             "(default 0.1)")
     parser.add_argument("--per-cuboid", action="store_true",
                         help="also list every matched cuboid with its IoU")
 
@@ -94,7 +97,8 @@ def report(score, pred_name: str, gt_name: str, per_cuboid: bool = False) -> str
         f"matched {len(m.pairs)} of {score.n_gt} true cuboids ({n_inst} by instance id, "
         f"{n_obj} by IoU within their object, {len(m.pairs) - n_inst - n_obj} by IoU); "
         f"{len(m.unmatched_pred)} predicted unmatched; "
-        f"mean IoU {score.mean_iou:.3f}",
+        f"mean IoU {score.mean_iou:.3f} (matched boxes {score.matched_iou:.3f}, "
+        f"side error {score.side_error:.3f})",
         "",
         f"contact graph ({score.graph_source})   precision   recall      F1   edges pred/true",
     ]

@@ -41,8 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--n-objects", type=int, default=None, metavar="N", help="room: number of objects")
     parser.add_argument("--renderer", default="mujoco", choices=("mujoco", "pybullet"),
                         help="render backend of the virtual sensor (default mujoco)")
-    parser.add_argument("--engine", default="mujoco", choices=("mujoco", "pybullet", "all"),
-                        help="engines a scene must stand in to be kept (default mujoco)")
+    parser.add_argument("--engine", default="all", choices=("mujoco", "pybullet", "all"),
+                        help="engines a scene must stand in to be kept (default all: "
+                             "MuJoCo and PyBullet)")
     parser.add_argument("--max-attempts", type=int, default=None, metavar="N",
                         help="samples to try before giving up (default 25)")
     parser.add_argument("--json", action="store_true", help="print a JSON summary")

@@ -62,18 +62,33 @@ def run_suite_tasks(args: argparse.Namespace, tasks: Iterable, label: str):
                      dask=getattr(args, "dask", None), label=label)
 
 
-def score_record(pred, gt, initial=None, graph: str = "union") -> dict:  # noqa: ANN001
+def score_record(pred, gt, initial=None, graph: str = "union",  # noqa: ANN001
+                 unseen: Sequence[str] | None = None) -> dict:
     """A compact JSON record of :func:`eval.metrics.score_arrangement` for a task result.
 
     Keeps the edge counts (so scenes can be summed, micro-averaged), mean IoU, the
     size error and Table 3's valence statistics of the true and predicted graphs;
-    aggregate with :func:`aggregate_prf` on ``"optimized.typed"`` etc.
+    aggregate with :func:`aggregate_prf` on ``"optimized.typed"`` etc.  The geometry of
+    the matched boxes is kept as sums that pool over scenes (:func:`geometry`):
+    ``n_matched``, ``iou_sum`` (their IoUs), ``side_abs`` / ``side_len`` (metres, see
+    :class:`eval.metrics.Score`).  With ``unseen`` (ids of true parts the scan saw too
+    little of) also ``n_seen`` (true parts seen), ``n_matched_seen`` (those matched),
+    ``unseen`` and ``fn_unseen`` (missed true contacts touching an unseen part).
     """
     from eval.metrics import contact_graph, score_arrangement, valence_stats
 
     s = score_arrangement(pred, gt, initial=initial, graph=graph)
     rec: dict[str, Any] = {"n_pred": s.n_pred, "n_gt": s.n_gt, "mean_iou": s.mean_iou,
-                           "n_matched": len(s.matching.pairs)}
+                           "n_matched": len(s.matching.pairs), "iou_sum": float(s.iou.sum()),
+                           "side_abs": s.side_abs, "side_len": s.side_len}
+    if unseen is not None:
+        hidden = set(unseen)
+        matched = {g for _, g in s.matching.pairs}
+        rec["n_seen"] = sum(1 for i in gt.ids if i not in hidden)
+        rec["n_matched_seen"] = sum(1 for i in gt.ids if i not in hidden and i in matched)
+        rec["unseen"] = list(unseen)
+        rec["fn_unseen"] = sum(1 for e in s.optimized.false_negatives
+                               if e[0] in hidden or e[1] in hidden)
     source = s.graph_source
     rec["valence"] = {"gt": valence_stats(contact_graph(gt, source), gt.ids).to_json(),
                       "optimized": valence_stats(contact_graph(pred, source), pred.ids).to_json()}
@@ -128,6 +143,130 @@ def aggregate_prf(records: Iterable[Mapping], key: str = "optimized.typed") -> d
             "macro_f1": sum(f1s) / n if n else float("nan"), "n": n}
 
 
+def seen_bound(records: Iterable[Mapping]) -> float:
+    """The typed F1 of results right about everything the scans saw (``table1_unseen``).
+
+    Every true contact is found except those touching a part the scan saw too little of
+    (``fn_unseen`` of :func:`score_record` with ``unseen``), and none is added: with
+    ``best = n_gt - fn_unseen`` summed over the records, ``2 best / (best + n_gt)``.
+    NaN when no record has the counts.
+    """
+    n_gt = fn_unseen = 0
+    for r in records:
+        c = _get(r, "optimized.typed")
+        if c is None or "fn_unseen" not in r:
+            continue
+        n_gt += int(c["n_gt"])
+        fn_unseen += int(r["fn_unseen"])
+    best = n_gt - fn_unseen
+    return 2 * best / (best + n_gt) if n_gt else float("nan")
+
+
+def geometry(records: Iterable[Mapping]) -> dict[str, float]:
+    """Geometry of the matched boxes over many scenes (sums pooled, see :func:`score_record`).
+
+    Returns
+    -------
+    dict
+        ``matched_share``: matched true parts seen / true parts seen (records without
+        ``n_seen``: matched / true parts); ``iou``: mean IoU of the matched boxes;
+        ``side_error``: ``sum |s - s^GT| / sum s^GT`` over their sides.  NaN when
+        undefined.
+    """
+    nan = float("nan")
+    seen = matched = n_pairs = 0
+    iou = side_abs = side_len = 0.0
+    for r in records:
+        if "n_seen" in r:
+            seen += int(r["n_seen"])
+            matched += int(r["n_matched_seen"])
+        elif "n_gt" in r and "n_matched" in r:
+            seen += int(r["n_gt"])
+            matched += int(r["n_matched"])
+        if "iou_sum" in r:
+            n_pairs += int(r["n_matched"])
+            iou += float(r["iou_sum"])
+            side_abs += float(r["side_abs"])
+            side_len += float(r["side_len"])
+    return {"matched_share": matched / seen if seen else nan,
+            "iou": iou / n_pairs if n_pairs else nan,
+            "side_error": side_abs / side_len if side_len > 0 else nan}
+
+
+def geometry_cells(records: Iterable[Mapping]) -> list[str]:
+    """The three cells of :data:`GEOMETRY_COLUMNS`: matched share (%), IoU, side error."""
+    g = geometry(records)
+    return [pct(g["matched_share"]), "-" if g["iou"] != g["iou"] else f"{g['iou']:.3f}",
+            "-" if g["side_error"] != g["side_error"] else f"{g['side_error']:.3f}"]
+
+
+#: The keys of a :func:`score_record` that :func:`geometry` pools.
+GEOMETRY_KEYS = ("n_gt", "n_matched", "iou_sum", "side_abs", "side_len", "n_seen",
+                 "n_matched_seen")
+
+
+def geometry_part(record: Mapping) -> dict:
+    """The part of a :func:`score_record` that :func:`geometry` reads (for compact records)."""
+    return {k: record[k] for k in GEOMETRY_KEYS if k in record}
+
+
+#: Columns of :func:`geometry_cells`, printed next to every F1 (a prior that raises F1 by
+#: making boxes wrong shows here).
+GEOMETRY_COLUMNS = ["matched share (%)", "IoU (matched)", "side error"]
+
+def geometry_note() -> str:
+    """What :data:`GEOMETRY_COLUMNS` mean, for a table's note."""
+    from eval.metrics import MIN_MATCH_IOU
+    from pipeline.segment import MIN_INSTANCE_POINTS
+
+    return (f"A predicted box counts as its true part only when their 3D IoU is at least "
+            f"{MIN_MATCH_IOU:g} (otherwise its contacts are false and the part's missed).  "
+            f"Matched share: true parts seen (at least {MIN_INSTANCE_POINTS} points in the "
+            f"scan) that have a matching box; IoU (matched): mean IoU of the matched boxes; "
+            f"side error: sum |s - s_true| / sum s_true over their sides.")
+
+
+#: Resamples and generator seed of :func:`bootstrap_f1`.
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_SEED = 0
+
+
+def bootstrap_f1(records: Sequence[Mapping], key: str = "optimized.typed", *,
+                 level: float = 0.95, resamples: int = BOOTSTRAP_RESAMPLES,
+                 seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
+    """Percentile bootstrap interval of the micro F1 over scenes.
+
+    Scenes are drawn with replacement (``resamples`` times, as many as there are, from a
+    ``numpy.random.Generator`` seeded with ``seed``); each resample's F1 is
+    ``2 tp / (n_pred + n_gt)`` of its summed counts.  The scenes' counts are sorted first,
+    so the same scenes in any order give the same interval.
+
+    Returns
+    -------
+    (lo, hi) : floats in [0, 1], NaN when no record has ``key``
+    """
+    import numpy as np
+
+    counts = [c for c in (_get(r, key) for r in records) if c is not None]
+    if not counts:
+        return float("nan"), float("nan")
+    c = np.array([[int(x["tp"]), int(x["n_pred"]) + int(x["n_gt"])] for x in counts], float)
+    c = c[np.lexsort((c[:, 1], c[:, 0]))]  # independent of the records' order
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(c), size=(resamples, len(c)))
+    tp, denom = c[idx, 0].sum(axis=1), c[idx, 1].sum(axis=1)
+    f1 = np.divide(2.0 * tp, denom, out=np.zeros_like(tp), where=denom > 0)
+    alpha = (1.0 - level) / 2.0
+    lo, hi = np.quantile(f1, [alpha, 1.0 - alpha])
+    return float(lo), float(hi)
+
+
+def interval_cell(interval: tuple[float, float]) -> str:
+    """``91.2-95.4`` (percent) or ``-``."""
+    lo, hi = interval
+    return "-" if lo != lo else f"{100 * lo:.1f}-{100 * hi:.1f}"
+
+
 def group_records(results: Mapping[str, Mapping], key: Callable[[str, Mapping], Any]
                   ) -> dict[Any, list[Mapping]]:
     """Group task results (id -> result) by ``key(task_id, result)``, keys in first-seen order."""
@@ -147,9 +286,10 @@ def pct(x: float, digits: int = 1) -> str:
     return "-" if x != x else f"{100 * x:.{digits}f}"
 
 
-#: Columns of :func:`pr_f1_rows` (the layout of the paper's Table 1).
+#: Columns of :func:`pr_f1_rows` (the layout of the paper's Table 1, then geometry).
 PR_F1_COLUMNS = ["scenes", "#scenes", "initial P / R (%)", "initial F1",
-                 "optimized P / R (%)", "optimized F1", "untyped F1", "mean IoU"]
+                 "optimized P / R (%)", "optimized F1", "F1 95% interval", "untyped F1",
+                 *GEOMETRY_COLUMNS]
 
 
 def pr_f1_rows(groups: Mapping[str, Sequence[Mapping]], *, total: str | None = "all"
@@ -157,8 +297,9 @@ def pr_f1_rows(groups: Mapping[str, Sequence[Mapping]], *, total: str | None = "
     """Table 1 rows from :func:`score_record` results grouped by scene family.
 
     Each row: name, scene count, initial ``P / R`` and F1, optimized ``P / R`` and F1
-    (typed, micro-averaged over the group's edges, percent), optimized untyped F1 and the
-    mean IoU.  ``total`` adds a row over every group (None: no total row).
+    (typed, micro-averaged over the group's edges, percent), its bootstrap interval
+    (:func:`bootstrap_f1`), optimized untyped F1 and the geometry of the matched boxes
+    (:func:`geometry_cells`).  ``total`` adds a row over every group (None: no total row).
     """
     items = list(groups.items())
     if total is not None:
@@ -168,11 +309,10 @@ def pr_f1_rows(groups: Mapping[str, Sequence[Mapping]], *, total: str | None = "
         init = aggregate_prf(recs, "initial.typed")
         opt = aggregate_prf(recs, "optimized.typed")
         unt = aggregate_prf(recs, "optimized.untyped")
-        ious = [r["mean_iou"] for r in recs if "mean_iou" in r]
         rows.append([name, len(recs),
                      pr_cell(init) if init["n"] else "-", pct(init["f1"]),
-                     pr_cell(opt) if opt["n"] else "-", pct(opt["f1"]), pct(unt["f1"]),
-                     f"{sum(ious) / len(ious):.3f}" if ious else "-"])
+                     pr_cell(opt) if opt["n"] else "-", pct(opt["f1"]),
+                     interval_cell(bootstrap_f1(recs)), pct(unt["f1"]), *geometry_cells(recs)])
     return rows
 
 

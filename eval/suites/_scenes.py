@@ -38,6 +38,17 @@ def run_config(budget: float = BUDGET, config: dict | None = None):
     return RunConfig(imagine=imagine)
 
 
+def check_config(config: dict | None) -> dict:
+    """A pipeline configuration (JSON-able :meth:`pipeline.priors.ImagineConfig.from_dict`
+    overrides: ``{"disable": [prior, ...], "params": {prior: {field: value}}}``), checked:
+    an unknown key or prior name raises, so a suite never runs silently unconfigured."""
+    from pipeline.priors import ImagineConfig
+
+    config = dict(config or {})
+    ImagineConfig.from_dict(config)
+    return config
+
+
 @contextlib.contextmanager
 def scratch() -> Iterator[Path]:
     """A temporary folder removed afterwards."""
@@ -120,35 +131,65 @@ def scene_task(rng: np.random.Generator, family: str, seed: int, views: int = 1,
                config: dict | None = None) -> dict:
     """One scene through the whole pipeline, scored (a :class:`eval.runner.Task` function).
 
-    Returns :func:`eval.suites._common.score_record` plus ``family``, ``seed``, ``views``,
-    ``n_gt``/``n_gt_contacts``, ``n_initial``, ``unseen`` (:func:`unseen_parts`),
-    ``fn_unseen`` (missed true contacts touching them) and :func:`summary_of`; with ``engine``
-    also ``stands`` (the result settled in that engine), with ``engines`` also
-    ``stands_in`` (engine -> whether it stands there).
+    ``config``: overrides of the inference configuration (:func:`check_config`), e.g.
+    ``{"disable": ["symmetry"]}``; recorded in the result when given.
+
+    Returns :func:`eval.suites._common.score_record` (with ``unseen``: the parts of
+    :func:`unseen_parts`, ``fn_unseen``, ``n_seen``, ``n_matched_seen``) plus ``family``,
+    ``seed``, ``views``, ``n_gt``/``n_gt_contacts``, ``n_initial`` and :func:`summary_of`;
+    with ``engine`` also ``stands`` (the result settled in that engine), with ``engines``
+    also ``stands_in`` (engine -> whether it stands there).  When the pipeline refuses
+    the scan (an ``InputError``, e.g. no ground plane found) the record says so in
+    ``pipeline_error`` and scores an empty result: every true contact missed.
     """
     from eval.suites._common import score_record
+    from pipeline.errors import InputError
 
-    del rng  # the scene is a function of its seed; the pipeline is seeded by run_args
+    del rng  # the scene is a function of its seed; the pipeline is seeded by its config
+    config = check_config(config)  # fail before the scene is made
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene", views=views, noise=noise,
                           **(options or {}))
         gt = made.truth.arrangement
-        result = run_dir(made.path, budget, config)
-        initial = result.initial
         unseen = unseen_parts(made.path / "scan", gt)
-    from eval.metrics import score_arrangement
-
-    rec = score_record(result.arrangement, gt, initial=initial)
-    fn = score_arrangement(result.arrangement, gt, initial=initial).optimized.false_negatives
+        try:
+            result = run_dir(made.path, budget, config)
+            initial = result.initial
+        except InputError as exc:  # the method gave up on this scan: a result, not a crash
+            return _gave_up(gt, unseen, str(exc), family, seed, views, config, engine, engines)
+    rec = score_record(result.arrangement, gt, initial=initial, unseen=unseen)
     rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
                n_gt_contacts=len(gt.contacts), n_initial=len(initial.cuboids),
-               unseen=unseen, fn_unseen=missed_at(fn, unseen),
                priors={k: list(v) for k, v in sorted(result.report.counts().items())},
                **summary_of(result.arrangement, result.report))
+    if config:
+        rec["config"] = config
     if engine:
         rec["stands"] = settle_stands(result.arrangement, engine)
     if engines:
         rec["stands_in"] = {e: settle_stands(result.arrangement, e) for e in engines}
+    return rec
+
+
+def _gave_up(gt, unseen: list[str], error: str, family: str, seed: int, views: int,  # noqa: ANN001
+             config: dict, engine: str | None, engines) -> dict:  # noqa: ANN001
+    """The record of a scene the pipeline refused (``unseen run`` would exit 2 with
+    ``error``, e.g. no ground plane found): no cuboids and no contacts, initially or
+    after optimization, so every true contact counts as missed; nothing stands."""
+    from eval.suites._common import score_record
+    from pipeline.model import Arrangement
+
+    empty = Arrangement((), ())
+    rec = score_record(empty, gt, initial=empty, unseen=unseen)
+    rec.update(family=family, seed=int(seed), views=int(views), n_gt=len(gt.cuboids),
+               n_gt_contacts=len(gt.contacts), n_initial=0, n_final=0, n_contacts=0,
+               n_fixed=0, n_glue=0, stable=False, hallucinated=0, pipeline_error=error)
+    if config:
+        rec["config"] = config
+    if engine:
+        rec["stands"] = False
+    if engines:
+        rec["stands_in"] = {e: False for e in engines}
     return rec
 
 

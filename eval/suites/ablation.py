@@ -6,8 +6,8 @@ in turn (:class:`pipeline.priors.ImagineConfig`), on two sets of scenes:
 * **development**: Table 1's seeds (:func:`eval.suites._scenes.scene_seed`, ``--n`` per
   family, default 4) of the ten families, the scenes the priors were written against;
 * **held-out pool**: ``--pool-n`` scenes per family (default 20) from seeds
-  ``--pool-seed`` + i (default :data:`POOL_SEED`), which no test or development run
-  uses.  Use a fresh ``--pool-seed`` for each round of work.
+  ``--first-seed`` + i (required, 100000 or more: :mod:`eval.suites.pool`), which no test
+  or development run uses.  Use a fresh ``--first-seed`` for each round of work.
 
 A prior that made no accepted edit in a scene's full run changes nothing there when it
 is switched off (its proposals have no other effect), so only the scenes where it acted
@@ -28,10 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-#: First seed of the default held-out pool (no test, development run or other suite uses
-#: seeds from here on).
-POOL_SEED = 300000
+#: Held-out scenes per family by default; ``--quick`` pools start at this seed.
 POOL_N = 20
+QUICK_POOL_SEED = 100000
 DEV_N = 4
 FAMILIES = ("stack", "table", "chair", "shelf", "desk", "sofa", "counterweight", "bridge",
             "wall_shelf", "room")
@@ -67,7 +66,8 @@ def scene_sets(args: argparse.Namespace) -> dict[str, list[tuple[str, int]]]:
     fams = QUICK_FAMILIES if quick else FAMILIES
     n_dev = 1 if quick else (args.n or DEV_N)
     n_pool = 2 if quick else int(getattr(args, "pool_n", None) or POOL_N)
-    first = int(getattr(args, "pool_seed", None) or POOL_SEED)
+    first = getattr(args, "first_seed", None)
+    first = QUICK_POOL_SEED if first is None and quick else int(first)
     return {"dev": [(f, scene_seed(args.seed, i)) for f in fams for i in range(n_dev)],
             "pool": [(f, first + i) for f in fams for i in range(n_pool)]}
 

@@ -38,8 +38,11 @@ DEFAULT_N = 4
 def run(args: argparse.Namespace) -> int:
     from eval.runner import Task
     from eval.suites._common import (
+        GEOMETRY_COLUMNS,
         PAPER_TABLE3,
         aggregate_prf,
+        geometry_cells,
+        geometry_note,
         pct,
         pr_cell,
         run_suite_tasks,
@@ -77,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
                      float(np.mean([v["mean_valence"] for v in val])),
                      float(np.min([v["min_valence"] for v in val])),
                      pr_cell(init), pr_cell(opt), pct(init["f1"]), pct(opt["f1"]),
-                     float(np.mean(secs)) if secs else float("nan")])
+                     *geometry_cells(recs), float(np.mean(secs)) if secs else float("nan")])
         for r, i in zip(recs, ids, strict=False):
             p = r["valence"]["gt"]["proxies"]
             pts["optimized F1 (%)"][0].append(p)
@@ -92,17 +95,18 @@ def run(args: argparse.Namespace) -> int:
                      p["median_valence"], p["mean_valence"], p["min_valence"],
                      f"{p['init_p']:.1f} / {p['init_r']:.1f}",
                      f"{p['opt_p']:.1f} / {p['opt_r']:.1f}", f"{p['init_f1']:.1f}",
-                     f"{p['opt_f1']:.1f}", float("nan")])
+                     f"{p['opt_f1']:.1f}", "-", "-", "-", float("nan")])
     note = ("Ground-truth graph statistics (proxies, contacts incl. supports, valence: "
             "max over scenes, median of medians, mean of means, min over scenes); typed "
             "P / R / F1 in percent, micro-averaged; seconds: mean wall time per scene of the "
             f"task (synthesis and scan included) on this machine.  {summary.n_ok} scenes ok, {summary.n_failed} "
-            "failed.  The paper's Fig. 13 is a synthetic 18-box scene; Fig. 16 and 14 are "
-            "recordings.\n" + failure_note(summary))
+            f"failed.  {geometry_note()}  The paper's Fig. 13 is a synthetic 18-box scene; "
+            "Fig. 16 and 14 are recordings.\n" + failure_note(summary))
     md = write_table(out, "complexity", ["scenes", "#", "proxies", "contacts", "max val.",
                                          "median val.", "mean val.", "min val.",
                                          "initial P / R", "optimized P / R", "initial F1",
-                                         "optimized F1", "seconds"], rows,
+                                         "optimized F1", *GEOMETRY_COLUMNS, "seconds"],
+                     rows,
                      title="Table 3: scene complexity", note=note, floatfmt=".3g")
     _plot(out / "complexity.png", pts)
     stream = getattr(args, "stream", None) or sys.stdout

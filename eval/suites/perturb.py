@@ -110,8 +110,8 @@ def _with(arr, rots: np.ndarray, sizes: np.ndarray):
 def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
                  runs: int, axis: str = "random") -> dict:
     """``runs`` perturbations of one scene's initial cuboids at ``angle`` degrees."""
-    from eval.suites._common import score_record
-    from eval.suites._scenes import make_scene, scratch
+    from eval.suites._common import geometry_part, score_record
+    from eval.suites._scenes import make_scene, scratch, unseen_parts
     from eval.suites._scenes import run_config as config_of
     from pipeline.imagine import imagine
     from pipeline.run import run_scan
@@ -122,15 +122,16 @@ def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
         gt = made.truth.arrangement
         first = run_scan(made.path, replace(cfg, stage="initial"))
         initial = first.initial
+        unseen = unseen_parts(made.path / "scan", gt)
     out_runs, discarded, forced = [], 0, 0
     for _ in range(runs):
         arr, d, f = perturb(initial, rng, angle, axis=axis)
         discarded += d
         forced += int(f)
         res = imagine(arr, first.evidence, cfg.imagine)
-        rec = score_record(res.arrangement, gt, initial=arr)
+        rec = score_record(res.arrangement, gt, initial=arr, unseen=unseen)
         out_runs.append({k: rec[k] for k in ("initial", "optimized", "mean_iou") if k in rec}
-                        | {"stable": bool(res.report.stable)})
+                        | geometry_part(rec) | {"stable": bool(res.report.stable)})
     return {"family": family, "seed": int(seed), "angle": float(angle), "axis": axis,
             "runs": out_runs,
             "discarded": int(discarded), "forced": forced, "n_initial": len(initial.cuboids),
@@ -140,8 +141,11 @@ def perturb_task(rng: np.random.Generator, family: str, seed: int, angle: float,
 def run(args: argparse.Namespace) -> int:
     from eval.runner import Task
     from eval.suites._common import (
+        GEOMETRY_COLUMNS,
         PAPER_TABLE2,
         aggregate_prf,
+        geometry_cells,
+        geometry_note,
         plot_series,
         run_suite_tasks,
         write_table,
@@ -179,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
                 micro = aggregate_prf(rec["runs"], "optimized.typed")
                 rows.append([fam, seed, axis, a, len(rec["runs"]), 100 * float(np.mean(ri)),
                              100 * float(np.mean(ro)), 100 * float(np.min(ro)),
-                             100 * micro["f1"],
+                             100 * micro["f1"], *geometry_cells(rec["runs"]),
                              100 * float(np.mean([r["stable"] for r in rec["runs"]])),
                              rec["discarded"], rec["forced"]])
                 xs.append(a)
@@ -191,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
             if a in by_angle:
                 i, o = by_angle[a]
                 rows.append([f"paper: {name}", "-", "?", a, "-", i, o, float("nan"), float("nan"),
-                             float("nan"), "-", "-"])
+                             "-", "-", "-", float("nan"), "-", "-"])
         series[f"paper {name}"] = ([a for a in angles if a in by_angle],
                                    [by_angle[a][1] for a in angles if a in by_angle])
     note = (f"Each run: every edge scaled by U[{1 - SIZE_PERTURBATION:.2f}, "
@@ -200,10 +204,12 @@ def run(args: argparse.Namespace) -> int:
             f"(> {OVERLAP_TOL * 1000:g} mm) are discarded ('discarded' counts them; 'forced': runs "
             f"with no clean draw in {MAX_TRIES}, where the least-overlapping draw was used).  F1: typed "
             "contact graph, percent, mean over runs (min, and micro over all runs' edges).  "
+            f"Geometry: over all runs.  {geometry_note()}  "
             f"{summary.n_ok} settings ok, {summary.n_failed} failed.\n" + failure_note(summary))
     md = write_table(out, "perturb", ["family", "scene seed", "axis", "rotation (deg)", "runs",
                                       "initial F1", "optimized F1", "min optimized F1",
-                                      "micro optimized F1", "stable %", "discarded", "forced"],
+                                      "micro optimized F1", *GEOMETRY_COLUMNS, "stable %",
+                                      "discarded", "forced"],
                      rows,
                      title="Table 2: perturbed initial cuboids, F1 initial -> optimized",
                      note=note, floatfmt=".1f")

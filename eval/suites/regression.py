@@ -37,11 +37,15 @@ import json
 import sys
 from pathlib import Path
 
-#: (case name, family, scene seed, family options)
+#: (case name, family, scene seed, family options).  Since the generator was widened
+#: the camera films wall_shelf-1000 with almost no floor in the picture and the pipeline
+#: stops ("no ground plane found", issue 20 item 4): its figures are 0 until that is
+#: fixed, and wall_shelf-1003 guards the wall-shelf code meanwhile.
 CASES = (("stack-1000", "stack", 1000, {}),
          ("table-1000", "table", 1000, {}),
          ("chair-1000", "chair", 1000, {}),
          ("wall_shelf-1000", "wall_shelf", 1000, {}),
+         ("wall_shelf-1003", "wall_shelf", 1003, {}),
          ("counterweight-1000", "counterweight", 1000, {}),
          ("desk-1000", "desk", 1000, {}))
 EXPECTED = Path(__file__).with_name("regression_expected.json")

@@ -54,7 +54,7 @@ def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: fl
         initial = result.initial
     s = score_arrangement(result.arrangement, gt, initial=initial)
     fn = [list(e) for e in s.optimized.false_negatives]
-    rec = score_record(result.arrangement, gt, initial=initial)
+    rec = score_record(result.arrangement, gt, initial=initial, unseen=hidden)
     rec.update(family=family, seed=int(seed), azimuth=float(azimuth), n_gt=len(gt.cuboids),
                n_initial=len(initial.cuboids), hidden=hidden, false_negatives=fn,
                fn_hidden=missed_at(fn, hidden), n_fp=len(s.optimized.false_positives),
@@ -64,7 +64,15 @@ def viewpoint_task(rng: np.random.Generator, family: str, seed: int, azimuth: fl
 
 def run(args: argparse.Namespace) -> int:
     from eval.runner import Task
-    from eval.suites._common import pct, plot_series, run_suite_tasks, write_table
+    from eval.suites._common import (
+        GEOMETRY_COLUMNS,
+        geometry_cells,
+        geometry_note,
+        pct,
+        plot_series,
+        run_suite_tasks,
+        write_table,
+    )
     from eval.suites._scenes import f1_of, failure_note, scene_seed
 
     out = Path(args.out)
@@ -88,15 +96,17 @@ def run(args: argparse.Namespace) -> int:
             for a, r in recs:
                 rows.append([fam, seed, a, r["n_gt"], len(r["hidden"]),
                              " ".join(r["hidden"]) or "-", pct(f1_of(r, "initial.typed")),
-                             pct(f1_of(r, "optimized.typed")), len(r["false_negatives"]),
-                             r["fn_hidden"], r["n_fp"], int(r["stable"])])
+                             pct(f1_of(r, "optimized.typed")), *geometry_cells([r]),
+                             len(r["false_negatives"]), r["fn_hidden"], r["n_fp"],
+                             int(r["stable"])])
             if recs:
                 f1s = [100 * f1_of(r) for _, r in recs]
                 series[f"{fam} {seed}"] = ([a for a, _ in recs], f1s)
                 fn = sum(len(r["false_negatives"]) for _, r in recs)
                 fnh = sum(r["fn_hidden"] for _, r in recs)
                 spread.append([fam, seed, len(recs), f"{min(f1s):.1f}", f"{np.median(f1s):.1f}",
-                               f"{max(f1s):.1f}", fn, fnh, pct(fnh / fn if fn else float("nan"))])
+                               f"{max(f1s):.1f}", *geometry_cells([r for _, r in recs]), fn, fnh,
+                               pct(fnh / fn if fn else float("nan"))])
     from pipeline.segment import MIN_INSTANCE_POINTS
 
     note = (f"Single Kinect-noised views at elevation {ELEVATION:g} deg, distance {DISTANCE:g} m "
@@ -104,14 +114,16 @@ def run(args: argparse.Namespace) -> int:
             f"cuboids with fewer than {MIN_INSTANCE_POINTS} points in the scan (too few to "
             "make a cuboid of).  FN: true contacts the optimized graph missed "
             "(typed); 'FN at hidden': those touching a hidden cuboid.  F1: typed, percent.  "
-            f"{summary.n_ok} views ok, {summary.n_failed} failed.\n" + failure_note(summary))
+            f"{geometry_note()}  {summary.n_ok} views ok, {summary.n_failed} failed.\n"
+            + failure_note(summary))
     md = write_table(out, "viewpoint", ["family", "seed", "azimuth (deg)", "gt cuboids",
                                         "hidden", "hidden ids", "initial F1", "optimized F1",
-                                        "FN", "FN at hidden", "FP", "stable"], rows,
+                                        *GEOMETRY_COLUMNS, "FN", "FN at hidden", "FP",
+                                        "stable"], rows,
                      title="One scene, many viewpoints", note=note)
     md += "\n" + write_table(out, "viewpoint_summary",
                              ["family", "seed", "views", "min F1", "median F1", "max F1",
-                              "FN", "FN at hidden", "FN at hidden %"], spread,
+                              *GEOMETRY_COLUMNS, "FN", "FN at hidden", "FN at hidden %"], spread,
                              title="Spread over viewpoints")
     plot_series(out / "viewpoint.png", series, xlabel="azimuth (degrees)",
                 ylabel="optimized typed F1 (%)", title="F1 per viewpoint")

@@ -87,7 +87,10 @@ class ImagineConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "disabled", expand(self.disabled))
         for name in self.params:
-            expand([name])
+            if name not in BY_NAME:
+                expand([name])  # raises, naming the known priors
+                raise InputError(f"params: give a prior's name, not the group {name!r}")
+            self.params_of(BY_NAME[name])  # a field it lacks raises here
 
     def enabled(self, name: str) -> bool:
         return name not in self.disabled

@@ -196,21 +196,105 @@ def test_common_regressions_and_failures():
     assert "- `b`: E: x" in _common.failures_markdown(bad)
 
 
-def test_common_pr_f1_rows():
-    def rec(tp, n_pred, n_gt, iou, init=None):
-        r = {"optimized": {"typed": {"tp": tp, "n_pred": n_pred, "n_gt": n_gt},
-                           "untyped": {"tp": n_gt, "n_pred": n_gt, "n_gt": n_gt}},
-             "mean_iou": iou}
-        if init:
-            r["initial"] = {"typed": dict(zip(("tp", "n_pred", "n_gt"), init, strict=True))}
-        return r
+def _rec(tp, n_pred, n_gt, init=None, *, seen=None, matched=None, iou=None, side=None):
+    """A score_record-like result: edge counts and, optionally, geometry sums."""
+    r = {"optimized": {"typed": {"tp": tp, "n_pred": n_pred, "n_gt": n_gt},
+                       "untyped": {"tp": n_gt, "n_pred": n_gt, "n_gt": n_gt}}}
+    if init:
+        r["initial"] = {"typed": dict(zip(("tp", "n_pred", "n_gt"), init, strict=True))}
+    if seen is not None:
+        r.update(n_seen=seen, n_matched_seen=matched, n_matched=len(iou), n_gt=seen,
+                 iou_sum=float(sum(iou)), side_abs=side[0], side_len=side[1])
+    return r
 
-    groups = {"stack": [rec(4, 4, 5, 0.9, (1, 2, 5)), rec(3, 4, 3, 0.7, (0, 0, 3))],
-              "chair": [rec(2, 2, 2, 0.5)]}
+
+def test_common_pr_f1_rows():
+    groups = {"stack": [_rec(4, 4, 5, (1, 2, 5), seen=4, matched=3, iou=[0.9, 0.8, 0.7],
+                             side=(0.3, 3.0)),
+                        _rec(3, 4, 3, (0, 0, 3), seen=2, matched=2, iou=[0.6, 0.5],
+                             side=(0.1, 2.0))],
+              "chair": [_rec(2, 2, 2, seen=4, matched=2, iou=[0.1, 0.2], side=(1.0, 5.0))]}
     rows = _common.pr_f1_rows(groups)
     assert len(rows[0]) == len(_common.PR_F1_COLUMNS)
-    # stack: optimized tp 7, pred 8, true 8 -> 87.5 / 87.5; initial tp 1, pred 2, true 8
-    assert rows[0] == ["stack", 2, "50.0 / 12.5", "20.0", "87.5 / 87.5", "87.5", "100.0", "0.800"]
+    assert _common.PR_F1_COLUMNS[-4:] == ["untyped F1", "matched share (%)", "IoU (matched)",
+                                          "side error"]
+    # stack: optimized tp 7, pred 8, true 8 -> 87.5 / 87.5; initial tp 1, pred 2, true 8;
+    # matched 5 of 6 seen parts, IoU (0.9 + 0.8 + 0.7 + 0.6 + 0.5) / 5, side 0.4 / 5.0
+    lo, hi = _common.bootstrap_f1(groups["stack"])
+    assert rows[0] == ["stack", 2, "50.0 / 12.5", "20.0", "87.5 / 87.5", "87.5",
+                       f"{100 * lo:.1f}-{100 * hi:.1f}", "100.0", "83.3", "0.700", "0.080"]
     assert rows[1][:4] == ["chair", 1, "-", "-"] and rows[1][5] == "100.0"
-    # all: optimized tp 9, pred 10, true 10
-    assert rows[2][0] == "all" and rows[2][4] == "90.0 / 90.0" and rows[2][7] == "0.700"
+    assert rows[1][6] == "100.0-100.0"  # one perfect scene: every resample is perfect
+    # all: optimized tp 9, pred 10, true 10; matched 7 of 10; IoU 3.8 / 7; side 1.4 / 10
+    assert rows[2][0] == "all" and rows[2][4] == "90.0 / 90.0"
+    assert rows[2][8:] == ["70.0", f"{3.8 / 7:.3f}", "0.140"]
+
+
+def test_common_geometry_pools_sums_and_falls_back_to_all_parts():
+    recs = [_rec(1, 1, 1, seen=4, matched=3, iou=[1.0, 0.5, 0.0], side=(1.0, 4.0)),
+            _rec(1, 1, 1, seen=1, matched=1, iou=[0.5], side=(0.0, 1.0))]
+    g = _common.geometry(recs)
+    assert g == {"matched_share": 4 / 5, "iou": 2.0 / 4, "side_error": 1.0 / 5.0}
+    # without the seen counts, the share is of all true parts
+    old = {"n_gt": 4, "n_matched": 2}
+    assert _common.geometry([old])["matched_share"] == 0.5
+    empty = _common.geometry([])
+    assert all(v != v for v in empty.values())
+    assert _common.geometry_cells([]) == ["-", "-", "-"]
+
+
+def test_bootstrap_interval_contains_the_f1_is_repeatable_and_shrinks_with_more_scenes():
+    rng = np.random.default_rng(7)
+    recs = []
+    for _ in range(20):
+        n_gt = int(rng.integers(3, 12))
+        tp = int(rng.integers(0, n_gt + 1))
+        recs.append(_rec(tp, tp + int(rng.integers(0, 3)), n_gt))
+    f1 = _common.aggregate_prf(recs)["f1"]
+    lo, hi = _common.bootstrap_f1(recs)
+    assert 0.0 <= lo < f1 < hi <= 1.0
+    assert _common.bootstrap_f1(recs) == (lo, hi)  # fixed seed: the same interval
+    assert _common.bootstrap_f1(recs[::-1]) == (lo, hi)  # in any order
+    assert _common.bootstrap_f1(recs, seed=1) != (lo, hi)
+    lo4, hi4 = _common.bootstrap_f1(recs * 4)  # the same scenes, four times as many
+    assert lo < lo4 < f1 < hi4 < hi
+    assert (hi4 - lo4) < 0.6 * (hi - lo)  # about 1 / sqrt(4) as wide
+    lo90, hi90 = _common.bootstrap_f1(recs, level=0.9)
+    assert lo < lo90 and hi90 < hi
+    assert _common.interval_cell((lo, hi)) == f"{100 * lo:.1f}-{100 * hi:.1f}"
+    nan = _common.bootstrap_f1([{"n_gt": 1}])
+    assert nan[0] != nan[0] and _common.interval_cell(nan) == "-"
+
+
+def test_score_record_counts_seen_and_matched_parts():
+    from pipeline.model import Arrangement, Contact, box, ground
+
+    gt = Arrangement((box("a", (0, 0, 0.5), (1, 1, 1)), box("b", (0, 0, 1.5), (1, 1, 1)),
+                      box("c", (3, 0, 0.5), (1, 1, 1))), (ground(),),
+                     (Contact("a", "ground"), Contact("a", "b"), Contact("c", "ground")))
+    # a matched, b shifted off its part (IoU 0.05: unmatched), c not predicted (unseen)
+    pred = Arrangement((gt.cuboids[0], box("b", (0, 0.9, 1.5), (1, 1, 1))), (ground(),),
+                       (Contact("a", "ground"), Contact("a", "b")))
+    rec = _common.score_record(pred, gt, graph="listed", unseen=["c"])
+    assert rec["n_seen"] == 2 and rec["n_matched_seen"] == 1 and rec["n_matched"] == 1
+    assert rec["iou_sum"] == pytest.approx(1.0) and rec["side_abs"] == pytest.approx(0.0)
+    assert rec["unseen"] == ["c"] and rec["fn_unseen"] == 1
+    assert rec["optimized"]["typed"] == {"tp": 1, "n_pred": 2, "n_gt": 3}
+
+
+def test_pipeline_config_is_checked_and_switches_priors_off():
+    from eval.suites import _scenes
+    from pipeline.priors import BY_NAME
+
+    assert _scenes.run_config(1.0, None).imagine.disabled == frozenset()
+    cfg = _scenes.run_config(1.0, {"disable": ["symmetry", "deepen"]}).imagine
+    assert cfg.disabled == {"mirror", "copies", "deepen"} and cfg.budget == 1.0
+    tuned = _scenes.run_config(2.0, {"params": {"close_gaps": {"gap": 0.03}}}).imagine
+    assert tuned.params_of(BY_NAME["close_gaps"]).gap == 0.03
+    assert tuned.params_of(BY_NAME["deepen"]) == BY_NAME["deepen"].params
+    for bad, msg in (({"enable": []}, "unknown keys"), ({"disable": ["rows2"]}, "unknown prior"),
+                     ({"params": {"deepen": {"nope": 1}}}, "params of prior deepen")):
+        with pytest.raises(ValueError, match=msg):
+            _scenes.run_config(1.0, _scenes.check_config(bad))
+    with pytest.raises(ValueError, match="unknown keys"):  # before any scene is made
+        _scenes.scene_task(np.random.default_rng(0), "stack", 1, config={"x": 1})

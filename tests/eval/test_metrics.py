@@ -10,6 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from eval.metrics import (
+    MIN_MATCH_IOU,
     PRF,
     align_axes,
     box_iou,
@@ -222,18 +223,88 @@ def test_hungarian_matching_recovers_permuted_noisy_boxes():
     assert m.unmatched_pred == () and m.unmatched_gt == ()
 
 
-def test_instance_ids_override_overlap():
+def test_instance_ids_choose_among_overlapping_parts_but_a_match_must_overlap():
     gt = _stack_scene()
-    # p0 sits on g0 but the scan's instance mask says it is g2 (index 3 -> cuboids[2])
+    # p straddles g0 (more overlap) and g1; the scan's instance mask says it is g1
+    # (index 2 -> cuboids[1]): it matches g1, not the part it overlaps more
+    p = box("p", (0.05, 0, 0.45), (0.8, 0.7, 0.5))
+    assert box_iou(p, gt.cuboids[0]) > box_iou(p, gt.cuboids[1]) >= MIN_MATCH_IOU
+    m = match_cuboids(Arrangement((p.with_(extra={"instance": 2}),)), gt)
+    assert m.pred_to_gt == {"p": "g1"} and m.how == ("instance",)
+    # p0 sits on g0 but names g2 (index 3), which it does not overlap: no match at all,
+    # not even with g0; p1 (no instance) takes g0 by IoU
     p0 = box("p0", gt.cuboids[0].center, gt.cuboids[0].size).with_(extra={"instance": 3})
     p1 = box("p1", gt.cuboids[0].center, gt.cuboids[0].size)
     m = match_cuboids(Arrangement((p0, p1)), gt)
-    assert m.pred_to_gt == {"p0": "g2", "p1": "g0"}
-    assert dict(zip([p for p, _ in m.pairs], m.how, strict=True)) == {"p0": "instance", "p1": "iou"}
-    assert m.iou[0] == 0.0 and m.iou[1] == pytest.approx(1.0)
+    assert m.pred_to_gt == {"p1": "g0"} and m.how == ("iou",)
+    assert m.unmatched_pred == ("p0",) and m.unmatched_gt == ("g1", "g2")
     # far away box: no IoU match
     far = box("f", (10, 10, 10), (1, 1, 1))
     assert match_cuboids(Arrangement((far,)), gt).unmatched_pred == ("f",)
+
+
+@pytest.mark.parametrize(("shift", "matched"), [(0.80, True), (0.83, False)])
+def test_every_match_needs_iou_of_at_least_the_threshold(shift, matched):
+    # a unit cube slid by d along x keeps IoU (1 - d) / (1 + d): 0.111 at 0.80, 0.093 at 0.83
+    gt = Arrangement((box("g0", (0, 0, 0.5), (1, 1, 1), object="o"),), (ground(),))
+    p = box("p0", (shift, 0, 0.5), (1, 1, 1))
+    assert box_iou(p, gt.cuboids[0]) == pytest.approx((1 - shift) / (1 + shift), abs=1e-9)
+    assert MIN_MATCH_IOU == 0.1
+    by_instance = p.with_(extra={"instance": 1})
+    by_object = p.with_(object="o")
+    for q, how in ((by_instance, "instance"), (by_object, "object"), (p, "iou")):
+        m = match_cuboids(Arrangement((q,)), gt)
+        assert m.pred_to_gt == ({"p0": "g0"} if matched else {})
+        assert m.how == ((how,) if matched else ())
+
+
+def test_a_box_far_from_its_part_loses_exactly_that_parts_contacts():
+    # The desk case: every box carries the right instance id, one of them (p1) was fitted
+    # beside its part.  Matching by id alone credited all four contacts; now p1 is
+    # unmatched, its two contacts are false positives and g1's two true ones are missed.
+    gt = Arrangement((box("g0", (0, 0, 0.25), (1.0, 0.8, 0.5)),
+                      box("g1", (0.1, 0, 0.7), (0.6, 0.6, 0.4)),
+                      box("g2", (0.1, 0, 1.0), (0.3, 0.3, 0.2)),
+                      box("g3", (2.0, 0, 0.3), (0.4, 0.4, 0.6))), (ground(),),
+                     (Contact("g0", "ground"), Contact("g1", "g0", "fixed"),
+                      Contact("g2", "g1"), Contact("g3", "ground")))
+    cubes = [c.with_(id=f"p{k}", extra={"instance": k + 1}) for k, c in enumerate(gt.cuboids)]
+    contacts = (Contact("p0", "ground"), Contact("p1", "p0", "fixed"), Contact("p2", "p1"),
+                Contact("p3", "ground"))
+    good = Arrangement(tuple(cubes), gt.supports, contacts)
+    s = score_arrangement(good, gt, graph="listed")
+    assert s.optimized.typed == PRF(4, 4, 4) and s.matched_iou == pytest.approx(1.0)
+    # p1 grown into a 70 cm cube beside its part (IoU 0.025)
+    moved = cubes[1].with_(center=np.array([0.65, 0.0, 0.35]), size=np.array([0.7, 0.7, 0.7]))
+    assert 0.02 < box_iou(moved, gt.cuboids[1]) < 0.03
+    bad = good.with_(cuboids=(cubes[0], moved, cubes[2], cubes[3]))
+    s = score_arrangement(bad, gt, graph="listed")
+    assert s.matching.unmatched_pred == ("p1",) and s.matching.unmatched_gt == ("g1",)
+    assert s.optimized.typed == PRF(2, 4, 4) and s.optimized.untyped == PRF(2, 4, 4)
+    assert s.optimized.false_positives == (("?p1", "g0", "fixed"), ("?p1", "g2", "touch"))
+    assert s.optimized.false_negatives == (("g0", "g1", "fixed"), ("g1", "g2", "touch"))
+    # the geometry of what matched is untouched by the unmatched box
+    assert s.matched_iou == pytest.approx(1.0) and s.side_error == pytest.approx(0.0, abs=1e-12)
+    assert s.mean_iou == pytest.approx(3 / 4)
+
+
+def test_side_error_and_matched_iou_by_hand():
+    gt = Arrangement((box("g0", (0, 0, 0.5), (1.0, 1.0, 1.0)),
+                      box("g1", (3, 0, 1.0), (1.0, 0.5, 2.0))), (ground(),))
+    # p0 half as tall (IoU 0.5, one side 0.5 m short); p1 is g1 turned 90 degrees about z
+    # with its x and y sizes swapped (the same box: IoU 1, no side error)
+    p0 = box("p0", (0, 0, 0.25), (1.0, 1.0, 0.5))
+    p1 = box("p1", (3, 0, 1.0), (0.5, 1.0, 2.0), yaw=math.pi / 2)
+    s = score_arrangement(Arrangement((p0, p1), (ground(),)), gt, graph="listed")
+    assert s.matching.pred_to_gt == {"p0": "g0", "p1": "g1"}
+    np.testing.assert_allclose(s.iou, [0.5, 1.0], atol=1e-9)
+    assert s.matched_iou == pytest.approx(0.75)
+    assert s.side_abs == pytest.approx(0.5) and s.side_len == pytest.approx(3.0 + 3.5)
+    assert s.side_error == pytest.approx(0.5 / 6.5)
+    js = s.to_json()
+    assert js["matched_iou"] == pytest.approx(0.75) and js["side_error"] == pytest.approx(0.5 / 6.5)
+    none = score_arrangement(Arrangement((), (ground(),)), gt, graph="listed")
+    assert none.matched_iou != none.matched_iou and none.to_json()["side_error"] is None
 
 
 def test_object_names_restrict_matching():
@@ -247,10 +318,10 @@ def test_object_names_restrict_matching():
     # names that are not GT object names are ignored
     m = match_cuboids(Arrangement((p.with_(object="cluster7"),)), gt)
     assert m.pred_to_gt == {"p": "g0"}
-    # within its object a small overlap is enough (a barely seen part)
+    # a sliver of its object that overlaps the part too little is no match either
     sliver = box("s", (0.1, 0.33, 0.93), (0.6, 0.2, 0.2), object="o1")  # IoU 0.018
-    assert box_iou(sliver, gt.cuboids[1]) < 0.05
-    assert match_cuboids(Arrangement((sliver,)), gt).pred_to_gt == {"s": "g1"}
+    assert box_iou(sliver, gt.cuboids[1]) < MIN_MATCH_IOU
+    assert match_cuboids(Arrangement((sliver,)), gt).pred_to_gt == {}
     assert match_cuboids(Arrangement((sliver.with_(object=None),)), gt).pred_to_gt == {}
 
 

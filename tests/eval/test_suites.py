@@ -62,6 +62,13 @@ def test_table1_quick(table1_serial: Path) -> None:
     assert unseen["stack"]["missed at unseen parts"] == "0"
     assert unseen["stack"]["F1 if only those were missed"] == "100.0"
     assert unseen["stack"]["optimized F1"] == rows["stack"]["optimized F1"]
+    # the geometry columns are the record's pooled sums: every stack box is seen
+    assert rec["n_seen"] == rec["n_gt"] and rec["n_matched_seen"] <= rec["n_seen"]
+    assert rows["stack"]["matched share (%)"] == f"{100 * rec['n_matched_seen'] / rec['n_seen']:.1f}"
+    assert rows["stack"]["IoU (matched)"] == f"{rec['iou_sum'] / rec['n_matched']:.3f}"
+    assert rows["stack"]["side error"] == f"{rec['side_abs'] / rec['side_len']:.3f}"
+    lo, hi = (float(x) for x in rows["all, single view"]["F1 95% interval"].split("-"))
+    assert lo <= float(rows["all, single view"]["optimized F1"]) <= hi
     assert int(unseen["stack"]["true contacts"]) == c["n_gt"]
     assert int(unseen["stack"]["missed"]) == c["n_gt"] - c["tp"]
 
@@ -228,3 +235,84 @@ def test_complexity_quick(tmp_path: Path) -> None:
     assert float(rows["paper: Fig. 13"]["proxies"]) == 18
     assert float(rows["stack 6"]["seconds"]) > 0
     assert "Table 3" in stream.getvalue()
+
+
+# ------------------------------------------------------------------------- pool
+def test_pool_tasks_cover_every_family_over_the_seed_range() -> None:
+    from eval.suites import pool
+
+    tasks = pool.build_tasks(100_000, 20)
+    assert len(tasks) == 200 and len({t.id for t in tasks}) == 200
+    assert {t.kwargs["family"] for t in tasks} == set(pool.FAMILIES) and len(pool.FAMILIES) == 10
+    assert {t.kwargs["seed"] for t in tasks} == set(range(100_000, 100_020))
+    assert all(t.kwargs["views"] == 1 and "config" not in t.kwargs for t in tasks)
+    cfg = {"disable": ["symmetry"]}
+    assert all(t.kwargs["config"] == cfg for t in pool.build_tasks(100_000, 1, config=cfg))
+    # the pool never reaches down into development (1000 + 100 s + i) or test seeds
+    from pipeline.errors import InputError
+
+    with pytest.raises(InputError, match="at least 100000"):
+        pool.build_tasks(99_999, 1)
+
+
+@pytest.mark.parametrize(("argv", "msg"), [
+    (["pool"], "--first-seed S is required"),
+    (["pool", "--first-seed", "1000"], "--first-seed: must be at least 100000"),
+    (["table1", "--first-seed", "100000"], "--first-seed: only for the pool and ablation suites"),
+])
+def test_pool_seed_range_errors_exit_2(tmp_path: Path, capsys, argv, msg) -> None:
+    out = tmp_path / "p"
+    assert main(["eval", argv[0], "--out", str(out), *argv[1:]]) == 2
+    err = capsys.readouterr().err.strip()
+    assert msg in err and "\n" not in err and not out.exists()
+
+
+def test_pool_quick(tmp_path: Path) -> None:
+    assert _eval("pool", tmp_path, "--quick", "--first-seed", "100007") == 0
+    cmd = json.loads((tmp_path / "command.json").read_text())
+    assert cmd["command"].endswith("--quick --first-seed 100007") and cmd["first_seed"] == 100007
+    rec = json.loads((tmp_path / "pool.json").read_text())
+    assert (rec["first_seed"], rec["last_seed"], rec["n_per_family"]) == (100007, 100007, 1)
+    assert "seeds 100007-100007" in (tmp_path / "pool.md").read_text()
+    rows = {r["family"]: r for r in _rows(tmp_path / "pool.csv")}
+    assert list(rows) == ["stack", "chair", "all"]
+    scenes = _rows(tmp_path / "scenes.csv")
+    assert [(s["family"], s["seed"]) for s in scenes] == [("stack", "100007"), ("chair", "100007")]
+    tasks = {p.stem: json.loads(p.read_text())["result"] for p in (tmp_path / "tasks").iterdir()}
+    assert set(tasks) == {"stack-100007", "chair-100007"}
+    for fam, r in tasks.items():
+        fam = fam.split("-")[0]
+        c = r["optimized"]["typed"]
+        f1 = 2 * c["tp"] / (c["n_pred"] + c["n_gt"])
+        fig = rec["figures"][fam]
+        assert fig["f1"] == pytest.approx(f1) and rows[fam]["typed F1"] == f"{100 * f1:.1f}"
+        # one scene: every bootstrap resample is that scene
+        assert fig["f1_lo"] == pytest.approx(f1) and fig["f1_hi"] == pytest.approx(f1)
+        best = c["n_gt"] - r["fn_unseen"]
+        assert fig["bound"] == pytest.approx(2 * best / (best + c["n_gt"]))
+        assert fig["matched_share"] == pytest.approx(r["n_matched_seen"] / r["n_seen"])
+        assert set(r["stands_in"]) == {"mujoco", "pybullet"}
+        assert fig["stands_mujoco"] == float(r["stands_in"]["mujoco"])
+    f_all = rec["figures"]["all"]
+    assert f_all["scenes"] == 2 and f_all["f1_lo"] <= f_all["f1"] <= f_all["f1_hi"]
+    assert (tmp_path / "pool.png").stat().st_size > 0
+
+
+def test_a_scan_the_pipeline_refuses_scores_every_contact_missed(monkeypatch) -> None:
+    from eval.suites import _scenes
+    from pipeline.errors import InputError
+
+    def refuse(*args, **kwargs):
+        raise InputError("no ground plane found (test)")
+
+    monkeypatch.setattr(_scenes, "run_dir", refuse)
+    rec = _scenes.scene_task(np.random.default_rng(0), "stack", 1, engines=["mujoco"])
+    n = rec["n_gt_contacts"]
+    assert rec["pipeline_error"] == "no ground plane found (test)"
+    for graph in ("optimized", "initial"):
+        assert rec[graph]["typed"] == {"tp": 0, "n_pred": 0, "n_gt": n}
+    assert rec["n_matched_seen"] == 0 and rec["n_seen"] == rec["n_gt"] - len(rec["unseen"])
+    assert rec["stable"] is False and rec["stands_in"] == {"mujoco": False}
+    from eval.suites.pool import figures
+
+    assert figures([rec])["refused"] == 1 and figures([rec])["f1"] == 0.0

@@ -59,7 +59,7 @@ def test_writes_scene_dir_and_json(tmp_path, capsys):
     arr = read_arrangement(out / "scene.json")
     assert summary["status"] == "ok" and summary["cuboids"] == len(arr.cuboids) == 4
     assert summary["contacts"] == len(arr.contacts)
-    assert summary["validation"]["engines"] == {"mujoco": True}
+    assert summary["validation"]["engines"] == {"mujoco": True, "pybullet": True}
     assert (out / "scan" / "depth.png").is_file() and (out / "scan" / "points.ply").is_file()
     # same command again: byte-identical files, the plain-text summary line
     out2 = tmp_path / "s2"

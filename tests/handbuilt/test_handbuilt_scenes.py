@@ -63,7 +63,11 @@ TABLE_HALLUCINATED = ("prior copies (pipeline.priors.copies) turns leg0 half a t
                       "(true -0.35..0.35): the imagined leg3 spans y 0.166..0.209, the true "
                       "0.26..0.31, IoU 0")
 
-GRAPH_XFAIL = {"table_leg_hidden": TABLE_GREEDY}
+GRAPH_XFAIL = {"table_leg_hidden": TABLE_GREEDY,
+               "plank": "the plank's box touches floor and wall but is " + PLANK_UPRIGHT
+               + " < 0.1: it does not count as the plank",
+               "chair": "the back's box touches seat and floor as the back does, but the "
+               + CHAIR_BACK + ": below 0.1, it does not count as the back"}
 GEOMETRY_XFAIL = {"plank": PLANK_UPRIGHT, "chair": CHAIR_BACK,
                   "table_leg_hidden": TABLE_HALLUCINATED}
 

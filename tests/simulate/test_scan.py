@@ -241,6 +241,47 @@ def test_viewpoints_within_ranges_and_looking_at_the_scene(arr):
         assert np.allclose(R.T @ R, np.eye(3)) and np.linalg.det(R) == pytest.approx(1.0)
 
 
+def test_default_views_hold_the_eye_where_a_person_films_from(arr):
+    """Height mode: the eye at 0.3-2 m above the floor (below the scene's centre too),
+    at least the sampled distance away, never steeper than the limit, looking at the
+    centre; an ``elevation`` range still selects the elevation mode."""
+    from simulate.viewpoints import (
+        FILMING_DISTANCE,
+        FILMING_HEIGHT,
+        MAX_STEEPNESS_DEG,
+        ViewRanges,
+        sample_viewpoints,
+        scene_center,
+    )
+
+    c, _ = scene_center(arr)
+    T = np.concatenate([sample_viewpoints(arr, np.random.default_rng(s), 4) for s in range(30)])
+    eye = T[:, :3, 3]
+    assert ((eye[:, 2] >= FILMING_HEIGHT[0] - 1e-9) & (eye[:, 2] <= FILMING_HEIGHT[1] + 1e-9)).all()
+    assert (eye[:, 2] < c[2]).any() and (eye[:, 2] > c[2] + 1.0).any()  # low and high views
+    off = eye - c
+    dist = np.linalg.norm(off, axis=1)
+    assert (dist >= FILMING_DISTANCE[0] - 1e-9).all()
+    steep = np.rad2deg(np.arcsin(np.abs(off[:, 2]) / dist))
+    assert steep.max() <= MAX_STEEPNESS_DEG + 1e-6
+    assert np.allclose(T[:, :3, 2], -off / dist[:, None])
+    az = np.rad2deg(np.arctan2(off[:, 1], off[:, 0]))
+    assert np.histogram(az, bins=4, range=(-180, 180))[0].min() > 0  # all the way round
+    # a fixed height is held exactly, however far the camera steps back to fit the scene
+    T = sample_viewpoints(arr, np.random.default_rng(1), 6, {"height": (0.45, 0.45)})
+    np.testing.assert_allclose(T[:, 2, 3], 0.45)
+    # a camera straight above the centre steps back to the steepest allowed view
+    T = sample_viewpoints(arr, np.random.default_rng(1), 2, {"height": (9.0, 9.0),
+                                                            "distance": (1.0, 1.0)})
+    off = T[:, :3, 3] - c
+    assert np.rad2deg(np.arcsin(off[:, 2] / np.linalg.norm(off, axis=1))) == \
+        pytest.approx([MAX_STEEPNESS_DEG] * 2)
+    assert ViewRanges.from_dict({"elevation": (20, 45)}).height is None
+    assert ViewRanges.from_dict({"azimuth": (0, 90)}).height == FILMING_HEIGHT
+    with pytest.raises(InputError, match="height"):
+        ViewRanges.from_dict({"height": (-1.0, 1.0)})
+
+
 def test_viewpoints_stay_in_front_of_walls():
     from simulate.viewpoints import WALL_MARGIN, sample_viewpoints
 

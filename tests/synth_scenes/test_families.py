@@ -99,6 +99,50 @@ def test_round_trip_and_determinism():
         assert dumps(arrangement_from_dict(json.loads(dumps(a)))) == dumps(a)
 
 
+def test_the_demo_scene_and_the_classic_builders_are_unchanged():
+    """The demo draws from the builders' first ranges: the same scenes as before the
+    families were widened (hashes of the scene JSON recorded at f87760e)."""
+    import hashlib
+
+    got = [hashlib.sha256(dumps(make("demo", np.random.default_rng(s))).encode()).hexdigest()[:16]
+           for s in (0, 2, 7)]
+    assert got == ["963a43ae2ea53155", "024a9710f848a8c1", "027b530547fd5313"]
+
+
+def test_families_draw_from_the_wide_ranges():
+    """Over 40 seeds the families reach far beyond the classic proportions: coffee and
+    bar tables, two to seven shelf boards, things on chair seats and shelf tops, desks
+    without a monitor; every value stays inside its WIDE range."""
+    from synth_scenes.objects import CLASSIC, WIDE
+
+    def top(arr, obj):
+        return max(float(box_corners(c.center[None], c.rotation[None], c.size[None])[0, :, 2].max())
+                   for c in arr.cuboids if c.object == obj)
+
+    seeds = range(40)
+    tables = [make("table", np.random.default_rng(s)) for s in seeds]
+    heights = np.array([top(a, "table0") for a in tables])
+    assert WIDE["table"]["height"][0] <= heights.min() < 0.55
+    assert 0.95 < heights.max() <= WIDE["table"]["height"][1]
+    assert (heights < CLASSIC["table"]["height"][0]).sum() >= 10
+    shelves = [make("shelf", np.random.default_rng(s)) for s in seeds]
+    boards = [sum(1 for c in a.cuboids if c.object == "shelf0") - 2 for a in shelves]
+    assert min(boards) == 2 and max(boards) >= 6
+    assert any(len({c.object for c in a.cuboids if c.center[2] > top(a, "shelf0")}) > 0
+               for a in shelves)  # things on the top board
+    chairs = [make("chair", np.random.default_rng(s)) for s in seeds]
+    with_item = [len({c.object for c in a.cuboids}) > 1 for a in chairs]
+    assert 0 < sum(with_item) < len(seeds)
+    desks = [make("desk", np.random.default_rng(s)) for s in seeds]
+    assert 0 < sum(not any(c.object.startswith("monitor") for c in a.cuboids)
+                   for a in desks) < len(seeds) // 2
+    walls = [make("wall_shelf", np.random.default_rng(s)) for s in seeds]
+    boards_top = [top(a, c.object) for a in walls for c in a.cuboids
+                  if c.object.startswith("wall_shelf")]
+    assert max(boards_top) <= WIDE["wall_shelf"]["top_max"] + WIDE["wall_shelf"]["board"][1]
+    assert min(boards_top) < CLASSIC["wall_shelf"]["lowest"][0]
+
+
 @pytest.mark.parametrize("variant", ["column", "staggered", "pyramid", "piles"])
 @pytest.mark.parametrize("n", [1, 3, 6])
 def test_stack_has_n_boxes(variant, n):
@@ -199,7 +243,8 @@ def test_every_family_gives_a_scene_that_stands(name):
     assert gt.status == "ok"
     assert gt.attempts <= 3
     v = gt.validation
-    assert v.stable and v.contacts_ok and v.analytic and v.engines == {"mujoco": True}
+    assert v.stable and v.contacts_ok and v.analytic
+    assert v.engines == {"mujoco": True, "pybullet": True}
     assert gt.arrangement.meta["validation"]["stable"] is True
 
 

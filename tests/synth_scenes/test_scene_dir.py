@@ -38,7 +38,7 @@ def test_layout_and_scene_json(stack_dir):
     meta = arr.meta
     assert meta["family"] == "stack" and meta["seed"] == 2 and meta["options"] == {"n_boxes": 5}
     assert meta["validation"] == {"stable": True, "contacts_ok": True, "analytic": True,
-                                  "engines": {"mujoco": True}}
+                                  "engines": {"mujoco": True, "pybullet": True}}
     assert meta["scan"]["views"] == 1 and meta["scan"]["noise"] == "none"
     depth = _png(out / "scan" / "depth.png")
     inst = _png(out / "scan" / "instance.png")
@@ -138,3 +138,33 @@ def test_rerun_with_other_views_leaves_no_stale_files(tmp_path):
     make_scene_dir("chair", out, seed=1, views=2, noise="none")
     assert not (out / "scan" / "depth.png").exists()
     assert (out / "scan" / "view0" / "depth.png").is_file()
+
+
+@pytest.mark.parametrize(("family", "height", "behind"), [
+    ("chair", 0.3, True), ("chair", 2.0, False), ("table", 0.3, False), ("shelf", 2.0, True)])
+def test_views_from_low_high_and_behind_see_a_scene_whose_truth_stands(tmp_path, family,
+                                                                      height, behind):
+    """The widened camera: knee or head height, in front of or behind the object (its
+    back faces +y in its own frame, turned by the scene's yaw).  The truth stands, the
+    eye is where it was asked to be, and the scan sees most of the scene's parts."""
+    from simulate.viewpoints import scene_center
+    from synth_scenes.registry import make
+    from synth_scenes.truth import scene_rngs
+
+    seed = 3
+    arr = make(family, scene_rngs(seed)[0])  # the first sample (these seeds need one)
+    back = arr.cuboids[0].rotation[:, 1]     # the object's local +y: toward its back
+    az = float(np.rad2deg(np.arctan2(back[1], back[0]))) + (0.0 if behind else 180.0)
+    made = make_scene_dir(family, tmp_path / "s", seed=seed,
+                          view_ranges={"height": (height, height), "azimuth": (az, az)})
+    gt = made.truth.arrangement
+    assert made.truth.status == "ok" and gt.meta["validation"]["stable"] is True
+    assert dumps(gt.with_(meta={})) == dumps(arr.with_(meta={}))
+    T = np.array(json.loads((made.path / "scan" / "camera_pose.json").read_text()))
+    assert T[2, 3] == pytest.approx(height)
+    c, _ = scene_center(gt)
+    view = np.rad2deg(np.arctan2(T[1, 3] - c[1], T[0, 3] - c[0]))
+    assert abs((view - az + 180.0) % 360.0 - 180.0) < 1e-6
+    inst = _png(made.path / "scan" / "instance.png")
+    seen = len(set(np.unique(inst[inst > 0]).tolist()))
+    assert seen >= 0.5 * len(gt.cuboids), (seen, len(gt.cuboids))
