@@ -50,6 +50,10 @@ CEILING_MIN_HEIGHT = 1.8
 #: A vertical plane is a wall only if at most this fraction of the points lie behind it
 #: (a box face has the rest of the box behind it).
 WALL_MAX_BEHIND = 0.10
+#: A vertical plane whose points the segmentation assigns to objects (an instance mask:
+#: per-point ids > 0) for more than this share is an object's face, not a wall (the
+#: coplanar fronts of a row of pillars, a wardrobe's door seen face-on).
+WALL_MAX_OBJECT_SHARE = 0.5
 #: A vertical plane parallel to a wall already found (normals within this many degrees)
 #: and this close to it (metres) is the same wall: at 4 m a Kinect's depth noise makes a
 #: wall a slab thicker than the RANSAC threshold, and RANSAC returns it as two planes.
@@ -253,8 +257,8 @@ def refine_floor(planes: list[Plane], prior: Plane, max_deg: float = FLOOR_PRIOR
 
 def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray | None = None,
                T_world_input: np.ndarray | None = None, camera_frame: bool = False,
-               threshold: float | None = None, floor_height: float | None = None
-               ) -> SceneFrame:
+               threshold: float | None = None, floor_height: float | None = None,
+               object_points: np.ndarray | None = None) -> SceneFrame:
     """Detect ground and walls and choose the world frame.
 
     Parameters
@@ -274,6 +278,9 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
     floor_height : float or None
         The floor's height along up in the input frame, metres (``--floor-height``); up
         is ``up``, else the pose's.  Like a pose, a prior RANSAC only refines.
+    object_points : (n,) bool or None
+        Points a segmentation (an instance mask) assigns to objects: a vertical plane
+        made mostly of them (:data:`WALL_MAX_OBJECT_SHARE`) is an object's face, not a wall.
     """
     if len(points) < 50:
         raise InputError("fewer than 50 valid points: nothing to fit (empty or all-NaN scan?)")
@@ -387,6 +394,10 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
             continue
         wall = Support(f"wall:{len(walls)}", pt_w, n_w)
         d = wall.signed_distance(world)
+        if object_points is not None:
+            near_plane = np.abs(d) < 1.5 * thr
+            if near_plane.any() and object_points[near_plane].mean() > WALL_MAX_OBJECT_SHARE:
+                continue  # the segmentation says these are an object's points
         # the wall, what sticks out of it by a little (handles, skirting) and what is behind
         on = (d < 3.0 * thr) & (labels == -1)
         # only a wall if most points are on its free side (not a box face)

@@ -159,3 +159,28 @@ def test_ransac_plane_of_collinear_points_finds_no_plane():
     line = np.outer(np.linspace(0.0, 1.0, 50), [1.0, 2.0, 3.0])
     n, off, cnt = ransac_plane(line, 0.01, np.random.default_rng(0))
     assert cnt == 0 and np.linalg.norm(n) == pytest.approx(1.0)
+
+
+def test_a_plane_the_segmentation_gives_to_an_object_is_its_face_not_a_wall():
+    # a wardrobe 2 m wide and 1.8 m tall seen face-on from low down, nothing behind it:
+    # its front is a large vertical plane with (almost) nothing seen behind it, so
+    # without a segmentation it passes for a wall; the instance mask says its points
+    # are an object's, so it is not one.  A true wall behind is still a wall with it.
+    wardrobe = [(np.array([0.0, 0.0, 0.9]), np.eye(3), np.array([0.6, 2.0, 1.8]))]
+    fr = raycast(wardrobe, eye=(2.4, 0.1, 0.4), target=(0.0, 0.0, 0.9))
+    pts, pix = backproject(fr.depth, fr.intr)
+    ids = fr.instance[pix[:, 0], pix[:, 1]]
+    blind = find_frame(pts, np.random.default_rng(1), camera_frame=True)
+    assert len(blind.walls) == 1  # the face, taken for a wall without a mask
+    seen = find_frame(pts, np.random.default_rng(1), camera_frame=True, object_points=ids > 0)
+    assert seen.walls == ()
+    assert np.all(seen.labels[ids > 0] != 1)
+    fr = raycast(wardrobe, eye=(2.4, 0.1, 0.4), target=(0.0, 0.0, 0.9), wall_x=-0.6)
+    pts, pix = backproject(fr.depth, fr.intr)
+    ids = fr.instance[pix[:, 0], pix[:, 1]]
+    both = find_frame(pts, np.random.default_rng(1), camera_frame=True, object_points=ids > 0)
+    assert len(both.walls) == 1
+    n = both.walls[0].normal
+    assert abs(n[2]) < 0.05
+    on_wall = (ids == 0) & (transform(both.T_world_input, pts)[:, 2] > 0.1)
+    assert (both.labels[on_wall] == 1).mean() > 0.95
