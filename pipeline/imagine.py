@@ -9,9 +9,9 @@
    fixed contacts, then least added volume, standing with gravity tilted by 2 degrees.
    Boxes nothing can hold up (their support was never seen) are set aside and the rest
    searched again (:data:`ISOLATE_ROUNDS`);
-3. the ``connect`` prior on the searched boxes, the set-aside boxes back, then the
-   ``settle`` priors (glue relaxed, parts anchored and grounded, hidden supports, gaps
-   closed) on an arrangement with a contact graph and a verdict;
+3. the set-aside boxes come back, then the ``settle`` priors (glue relaxed, parts
+   anchored and grounded, hidden supports, gaps closed) on an arrangement with a
+   contact graph and a verdict;
 4. the paper's *refinement* (:mod:`pipeline.refine`) when the result still carries
    residual energy above a hundredth of the threshold, and the *closing* of contact gaps
    the statics counted as touching (:func:`pipeline.snap.close_gaps`: what the engines
@@ -139,24 +139,19 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
         if left < 0.1 * budget:  # no time for another search: keep the best effort
             break
         result = search(arr, edges, budget=left, mu=mu, threshold=threshold)
-    timings["search"] = time.perf_counter() - t
 
-    t = time.perf_counter()
-    ctx = Context(arr, tuple(edges), mu, threshold, t0 + budget)
-    final = run_stage("connect", result.arrangement, evidence, ctx, config, report)
-    if aside:
+    final = result.arrangement
+    if aside:  # the set-aside boxes come back, unless an extension grew into one
         with_aside = final.with_(cuboids=final.cuboids + tuple(aside), stability=None)
         ids = {c.id for c in aside}
-        if any(a in ids or b in ids  # an extension grew into one: undo
-               for a, b, _ in find_contacts(with_aside).penetrations):
+        if any(a in ids or b in ids for a, b, _ in find_contacts(with_aside).penetrations):
             arr, edges, result = full
-            aside = []
-            ctx = Context(arr, tuple(edges), mu, threshold, t0 + budget)
-            final = run_stage("connect", result.arrangement, evidence, ctx, config, report)
+            aside, final = [], full[2].arrangement
         else:
             final = finalize(with_aside, [c for c in final.contacts if c.type == "fixed"],
                              mu=mu, threshold=threshold)
-    timings["connect"] = time.perf_counter() - t
+    ctx = Context(arr, tuple(edges), mu, threshold, t0 + budget)
+    timings["search"] = time.perf_counter() - t
 
     t = time.perf_counter()
     final = run_stage("settle", final, evidence, ctx, config, report)

@@ -17,10 +17,8 @@ Stages, in the order :func:`pipeline.imagine.imagine` runs them:
 * ``prepare``: corrections of the fit itself (orientation, overlaps), before anything is
   added;
 * ``complete``: volume added where the sensor could not see, before the candidates;
-* ``connect``: after the search, on the searched boxes (those set aside as unsupported
-  come back after it): the parts of an object joined into one body;
-* ``settle``: on the whole arrangement, with its contact graph and verdict: glue
-  relaxed, parts anchored and grounded, supports added, gaps closed.
+* ``settle``: after the search, on the arrangement with its contact graph and verdict:
+  glue relaxed, parts anchored and grounded, supports added, gaps closed.
 """
 
 from __future__ import annotations
@@ -31,7 +29,7 @@ from typing import Any
 
 from ..model import Arrangement, Contact, Cuboid
 
-STAGES = ("prepare", "complete", "connect", "settle")
+STAGES = ("prepare", "complete", "settle")
 
 
 @dataclass(frozen=True)

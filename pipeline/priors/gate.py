@@ -11,7 +11,7 @@ An edit (:class:`pipeline.priors.base.Edit`) is rejected, with the reason, when
    a box (each pushed face's slab; for a turned box, the part outside the old box; a
    new box whole) lie clearly in front of the depth (:mod:`pipeline.evidence`, one
    noise model for every prior);
-3. **after the search** (stages ``connect`` and ``settle``) **a box falls that stood**: the arrangement with the edit, its
+3. **after the search** (stage ``settle``) **a box falls that stood**: the arrangement with the edit, its
    contacts listed from the geometry (``fixed`` where the edit says), fails the analytic
    check with gravity tilted by :data:`TILT_DEG` (the margin the search demands: no
    knife-edge explanations) for a box that stood before the edit.

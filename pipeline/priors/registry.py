@@ -11,7 +11,6 @@ from ..errors import InputError
 from .anchor_parts import PRIOR as _anchor_parts
 from .base import Prior
 from .close_gaps import PRIOR as _close_gaps
-from .connect_objects import PRIOR as _connect_objects
 from .connectors import PRIOR as _connectors
 from .copies import PRIOR as _copies
 from .deepen import PRIOR as _deepen
@@ -32,7 +31,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
     _rows, _deepen, _reach, _connectors, _join_parts, _mirror, _copies,
-    _connect_objects, _relax_glue, _anchor_parts, _ground_parts, _hidden_supports, _close_gaps)
+    _relax_glue, _anchor_parts, _ground_parts, _hidden_supports, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.
 GROUPS: dict[str, tuple[str, ...]] = {"symmetry": ("mirror", "copies")}

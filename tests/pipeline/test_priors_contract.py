@@ -433,15 +433,14 @@ def test_every_edit_the_gate_accepts_keeps_its_contract(monkeypatch):
         arr = run_stage("prepare", arr, evidence, ctx, config, report)
         run_stage("complete", arr, evidence.scaled_to(arr), ctx, config, report)
         tally(_audit(spy, report, rules))
-    for seed in range(2):  # after the search: connect, then settle
+    for seed in range(2):  # after the search: settle
         final, evidence, ctx = _settle_scene(seed)
         assert final.stability.stable
         assert check_stability(final, tilt_deg=2.0).stable  # stands with the search's margin
         monkeypatch.setattr(runner, "PRIORS", PRIORS + (_fuzz("settle", 10 + seed),))
         report = EditLog()
         spy.calls.clear()
-        out = run_stage("connect", final, evidence, ctx, config, report)
-        run_stage("settle", out, evidence, ctx, config, report)
+        run_stage("settle", final, evidence, ctx, config, report)
         tally(_audit(spy, report, rules))
     # the scenes exercise the gate: most priors proposed, edits went both ways
     real = {p.name: p.stage for p in PRIORS}
