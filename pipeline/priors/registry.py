@@ -11,7 +11,6 @@ from ..errors import InputError
 from .anchor_parts import PRIOR as _anchor_parts
 from .base import Prior
 from .close_gaps import PRIOR as _close_gaps
-from .connectors import PRIOR as _connectors
 from .copies import PRIOR as _copies
 from .deepen import PRIOR as _deepen
 from .ground_parts import PRIOR as _ground_parts
@@ -20,7 +19,6 @@ from .join_parts import PRIOR as _join_parts
 from .mirror import PRIOR as _mirror
 from .object_yaw import PRIOR as _object_yaw
 from .overlaps import PRIOR as _overlaps
-from .reach import PRIOR as _reach
 from .relax_glue import PRIOR as _relax_glue
 from .rows import PRIOR as _rows
 from .support_yaw import PRIOR as _support_yaw
@@ -30,7 +28,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 #: Every prior, in the order they run (stage by stage).
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
-    _rows, _deepen, _reach, _connectors, _join_parts, _mirror, _copies,
+    _rows, _deepen, _join_parts, _mirror, _copies,
     _relax_glue, _anchor_parts, _ground_parts, _hidden_supports, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.

@@ -52,7 +52,7 @@ class EditLog:
 
     @property
     def hallucinated(self) -> list[str]:
-        """Boxes the priors added (no observed box): copies, connectors, hidden supports."""
+        """Boxes the priors added (no observed box): copies, hidden supports."""
         return list(self.added)
 
     def counts(self) -> dict[str, tuple[int, int]]:
