@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import box_samples, is_free, is_upright, upright_extent
+from ..boxops import box_samples, is_free, is_upright, up_axis, upright_extent
 from ..model import Arrangement, Cuboid
 from .base import Edit, Prior, principle_of
 
@@ -140,7 +140,7 @@ def apply(arr, evidence, p: Params, ctx):
             other = [k for k in range(3) if k != ax]
             areas.append(c.size[other[0]] * c.size[other[1]])
         top = cubs[int(np.argmax(areas))]
-        up = int(np.argmax(np.abs(top.rotation[2, :])))
+        up = up_axis(top)
         top_narrow = float(min(top.size[k] for k in range(3) if k != up))
         legs = []
         for c in cubs:
@@ -233,7 +233,7 @@ def apply(arr, evidence, p: Params, ctx):
 def top_of(cubs: list[Cuboid]) -> Cuboid:
     """The part of largest horizontal area."""
     def area(c: Cuboid) -> float:
-        up = int(np.argmax(np.abs(c.rotation[2, :])))
+        up = up_axis(c)
         return float(np.prod(np.delete(c.size, up)))
     return max(cubs, key=area)
 
@@ -241,7 +241,7 @@ def top_of(cubs: list[Cuboid]) -> Cuboid:
 def _under(top: Cuboid, part: Cuboid) -> bool:
     """Whether ``part`` stands under ``top``: its top within a tenth of the top's length
     of the top's bottom and its centre inside the top's footprint."""
-    up = int(np.argmax(np.abs(top.rotation[2, :])))
+    up = up_axis(top)
     horiz = [k for k in range(3) if k != up]
     p = top.rotation.T @ (part.center - top.center)
     h_part, _ = upright_extent(part)
@@ -256,7 +256,7 @@ def _twins(a: Cuboid, b: Cuboid, TWIN_SIZE_REL: float) -> bool:
     within a tenth of the long side of the same vertical."""
     out = []
     for c in (a, b):
-        up = int(np.argmax(np.abs(c.rotation[2, :])))
+        up = up_axis(c)
         if not is_upright(c):
             return False
         horiz = sorted((k for k in range(3) if k != up), key=lambda k: float(c.size[k]))

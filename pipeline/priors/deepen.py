@@ -24,6 +24,7 @@ import numpy as np
 
 from ..boxops import (
     broad_face,
+    horizontal_axes,
     object_depth,
     object_reach,
     overlap_face,
@@ -31,6 +32,7 @@ from ..boxops import (
     resting_cut,
     single_part,
     trimmed,
+    up_axis,
 )
 from ..contacts import find_contacts
 from ..model import Arrangement, is_support_id
@@ -87,8 +89,8 @@ def apply(arr, evidence, p: Params, ctx):
         if np.linalg.norm(look) < 1e-9:
             continue
         look /= np.linalg.norm(look)
-        horizontal = [a for a in range(3) if abs(c.rotation[2, a]) <= 0.5]
-        height = float(c.size[int(np.argmax(np.abs(c.rotation[2])))])
+        horizontal = horizontal_axes(c)
+        height = float(c.size[up_axis(c)])
         for axis in horizontal:
             along = float(c.rotation[:, axis] @ look)
             width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)

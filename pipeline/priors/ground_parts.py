@@ -14,9 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from ..boxops import changed_boxes, pushed_to_extension
+from ..boxops import changed_boxes, pushed_to_extension, up_axis
 from ..contacts import find_contacts
 from .base import Edit, Prior, principle_of
 
@@ -54,7 +52,7 @@ def apply(arr, evidence, p: Params, ctx):
         # ... a drop the sensor could not have seen the part's bottom across
         drop = float(reach[c.id].length)
         seen = c.observed.size if c.observed is not None else c.size
-        height = float(seen[int(np.argmax(np.abs(c.rotation[2])))])
+        height = float(seen[up_axis(c)])
         if drop < max(p.min_drop, p.drop_rel * height):
             continue
         trial = pushed_to_extension(final, initial, reach[c.id])

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import gap, is_upright, merged, overlap_across, same_axes, z_range
+from ..boxops import gap, is_upright, merged, overlap_across, same_axes, up_axis, z_range
 from ..contacts import find_contacts
 from ..evidence import slab_samples
 from ..model import Arrangement, Contact, Cuboid
@@ -79,7 +79,7 @@ def apply(arr, evidence, p: Params, ctx):
         if (o is None or c.extra.get("hallucinated") or c.id not in grounded
                 or (c.object is not None and parts[c.object] > 1)):
             continue
-        k = int(np.argmax(np.abs(c.rotation[2])))
+        k = up_axis(c)
         if not is_upright(c):
             continue
         bottom, _ = z_range(c)
@@ -127,7 +127,7 @@ def apply(arr, evidence, p: Params, ctx):
         low = cands[g[0]][1]
         for i in g[1:]:
             low = merged(low, cands[i][1])
-        k = int(np.argmax(np.abs(low.rotation[2])))
+        k = up_axis(low)
         top = min(z_range(cands[i][0])[0] for i in g)
         size = low.size.copy()
         size[k] = top - z_range(low)[0]
@@ -142,7 +142,7 @@ def apply(arr, evidence, p: Params, ctx):
             c = cands[i][0]
             grow = z_range(c)[0] - top
             sz = c.size.copy()
-            sz[int(np.argmax(np.abs(c.rotation[2])))] += grow
+            sz[up_axis(c)] += grow
             cut[c.id] = c.with_(center=c.center - np.array([0, 0, grow / 2]), size=sz)
         # a part of the multi-part object it touches most (the sofa around its seat),
         # reaching out to that object's parts across hidden space

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import box_samples, separations
+from ..boxops import box_samples, separations, up_axis
 from .base import Edit, Prior, principle_of
 from .copies import MIRROR_SLACK, mirror_support, top_of
 
@@ -65,7 +65,7 @@ def apply(arr, evidence, p: Params, ctx):
                 hi = np.maximum(own + part.size / 2, corners.max(axis=0))
                 # up to the underside of the top, not into it (a strip whose noisy top
                 # reaches into the top would carry that overlap along)
-                up = int(np.argmax(np.abs(part.rotation[2])))
+                up = up_axis(part)
                 if part.rotation[2, up] > 0:
                     hi[up] = min(hi[up], top_bottom)
                 else:

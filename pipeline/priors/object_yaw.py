@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import is_upright, turned_by
+from ..boxops import is_upright, quarter_turn, turned_by
 from .base import Edit, Prior, principle_of
 from .yaw_fit import plateau_middle, yaw_counts
 
@@ -30,7 +30,7 @@ def object_yaw(cubs, idx, yaws: np.ndarray, mean: float, p: Params, evidence) ->
     """The yaw the upright parts ``idx`` of one object share, fitted to the views."""
     parts = []
     for i, y in zip(idx, yaws, strict=True):
-        d = (y - mean + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        d = quarter_turn(mean, y)
         if abs(d) <= np.radians(p.max_deg) and is_upright(cubs[i]):
             parts.append((i, float(d)))
     ds = [d for _, d in parts]
@@ -74,7 +74,7 @@ def apply(arr, evidence, p: Params, ctx):
             mean = object_yaw(cubs, idx, yaws, mean, p, evidence)
         turned = []
         for i, y in zip(idx, yaws, strict=True):
-            d = (y - mean + np.pi / 4) % (np.pi / 2) - np.pi / 4
+            d = quarter_turn(mean, y)
             if 1e-9 < abs(d) <= np.radians(p.max_deg) and is_upright(cubs[i]):
                 turned.append(turned_by(cubs[i], -d))
         if turned:

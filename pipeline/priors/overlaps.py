@@ -22,6 +22,7 @@ import numpy as np
 
 from ..boxops import (
     floor_height,
+    horizontal_axes,
     lifted_from_plane,
     merged,
     penetrating,
@@ -56,7 +57,7 @@ def face_on_axis(c: Cuboid, eye: np.ndarray, p: Params) -> int | None:
     if np.linalg.norm(look) < 1e-9:
         return None
     look /= np.linalg.norm(look)
-    horizontal = [a for a in range(3) if abs(c.rotation[2, a]) <= 0.5]
+    horizontal = horizontal_axes(c)
     for axis in horizontal:
         width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
         if (abs(float(c.rotation[:, axis] @ look)) >= np.cos(np.radians(p.face_on_deg))

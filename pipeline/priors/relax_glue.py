@@ -21,7 +21,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from ..boxops import touching_group
+from ..boxops import horizontal_axes, touching_group
 from ..contacts import find_contacts
 from ..errors import InputError
 from ..evidence import slab_samples
@@ -64,7 +64,7 @@ def _growths(arr: Arrangement, ids: list[str], evidence, p: Params,
                 face = float(c.center @ u + c.size[axis] / 2)
                 # fractions of this extent, and of the widest horizontal one (a slab seen
                 # edge-on, a pillar seen from the front, has almost no depth)
-                widest = max(float(c.size[a]) for a in range(3) if abs(c.rotation[2, a]) <= 0.5)
+                widest = max(float(c.size[a]) for a in horizontal_axes(c))
                 lengths = {round(f * e, 6) for f in p.growth_fractions
                            for e in (float(c.size[axis]), widest)}
                 for o in other:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import is_upright, resting_on, single_part, turned_by, yaw_of
+from ..boxops import is_upright, quarter_turn, resting_on, single_part, turned_by, up_axis, yaw_of
 from .base import Edit, Prior, principle_of
 from .yaw_fit import yaw_counts
 
@@ -57,13 +57,13 @@ def apply(arr, evidence, p: Params, ctx):
     for c in arr.cuboids:  # all judged on the boxes as this prior found them
         if c.extra.get("slanted") or not is_upright(c) or not single_part(arr, c):
             continue
-        up = int(np.argmax(np.abs(c.rotation[2])))
+        up = up_axis(c)
         if np.delete(c.size, up).min() >= p.thin_fraction * c.size[up]:
             continue  # not standing on its narrow end: its top face shows its yaw
         s = resting_on(arr, c, p.gap)
         if s is None or s.extra.get("slanted"):
             continue
-        d = (yaw_of(s.rotation) - yaw_of(c.rotation) + np.pi / 4) % (np.pi / 2) - np.pi / 4
+        d = quarter_turn(yaw_of(c.rotation), yaw_of(s.rotation))
         if abs(d) <= np.radians(p.step_deg):
             continue
         near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..boxops import up_axis
 from ..model import rotation_about_axis
 from .base import Edit, Prior, principle_of
 
@@ -27,7 +28,7 @@ def apply(arr, evidence, p: Params, ctx):
     for c in arr.cuboids:
         if c.extra.get("slanted"):
             continue
-        k = int(np.argmax(np.abs(c.rotation[2])))
+        k = up_axis(c)
         a = c.rotation[:, k] * np.sign(c.rotation[2, k])
         tilt = float(np.arccos(np.clip(a[2], -1.0, 1.0)))
         if 1e-9 < tilt <= limit:
