@@ -11,9 +11,20 @@ slab standing on its edge that is a box of its own or shows a face of
 pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
 entered; a part goes no deeper than its object's other parts span along that axis, nor
-further than they reach behind it.  Blocked within a step by a broad face (a back
+further than they reach behind it; a flat slab of its own (thinner than ``thin_fraction``
+of its width) no further than what it rests on and what rests on it reach behind it (a plank
+on a block seen end-on is not a square).  Blocked within a step by a broad face (a back
 cushion a few degrees askew to the sofa's back), it goes as deep as it fits, to
 ``resolution``.
+
+The parts a part is joined to say how deep it is too: furniture is joined face to face
+(a board's end against its side panel, a seat cushion's end against an arm), so where
+two upright parts of one object meet side by side (vertical ranges sharing at least
+``joined_share`` of the lower one, their faces within ``joined_gap``), the one whose
+extent across the joint stops short of the other's on the side away from the camera by
+more than ``joined_min`` is pushed back to the other's far face there, as far as no view
+saw the added space empty.  A leg under a top or a box on a board is not joined side by
+side; a rail between two legs is no wider across the joint than they are.
 """
 
 from __future__ import annotations
@@ -25,14 +36,17 @@ import numpy as np
 from ..boxops import (
     broad_face,
     horizontal_axes,
+    is_upright,
     object_depth,
     object_reach,
     overlap_face,
     push_face,
     resting_cut,
+    resting_on,
     single_part,
     trimmed,
     up_axis,
+    z_range,
 )
 from ..contacts import find_contacts
 from ..model import Arrangement, is_support_id
@@ -47,6 +61,10 @@ class Params:
     big_face: float = 0.2  #: metres: both sides of a big seen face
     steps: int = 4  #: increments of the push
     resolution: float = 0.002  #: metres: how finely a blocked push is found
+    rest_gap: float = 0.02  #: metres between a flat slab and what it rests on or carries
+    joined_gap: float = 0.02  #: metres between the faces of parts joined side by side
+    joined_share: float = 0.5  #: share of the lower part's height the two share
+    joined_min: float = 0.03  #: metres one part must stop short of the other
 
 
 def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
@@ -76,11 +94,99 @@ def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
     return None
 
 
-def apply(arr, evidence, p: Params, ctx):
-    from ..extend import Extension
+def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
+    """How far behind ``c``'s face against ``u`` the boxes reach that ``c`` rests on or
+    that rest on it (within ``gap``); inf when there are none."""
+    near = _range_along(c, u)[0]
+    below = resting_on(arr, c, gap)
+    touching = [q for q in arr.cuboids if q is not c and (
+        (below is not None and q.id == below.id) or resting_on(arr, q, gap) is c)]
+    far = [_range_along(q, u)[1] for q in touching]
+    return max(far) - near if far else float("inf")
 
+
+def _range_along(c, u: np.ndarray) -> tuple[float, float]:
+    half = 0.5 * float(np.abs(c.rotation.T @ u) @ c.size)
+    m = float(c.center @ u)
+    return m - half, m + half
+
+
+def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
+    """``(k, axis, u, length)``: box ``k``'s face on ``axis`` towards ``u`` (away from the
+    camera at ``eye``) would reach the far face of a part of its object joined to it side
+    by side (see the module docstring) when pushed out by ``length``; longest first."""
+    out = []
+    cubs = arr.cuboids
+    for k, c in enumerate(cubs):
+        if c.object is None or c.extra.get("hallucinated") or not is_upright(c):
+            continue
+        cz0, cz1 = z_range(c)
+        for q in cubs:
+            if q is c or q.object != c.object or not is_upright(q):
+                continue
+            qz0, qz1 = z_range(q)
+            if min(cz1, qz1) - max(cz0, qz0) < p.joined_share * min(cz1 - cz0, qz1 - qz0):
+                continue
+            for axis in horizontal_axes(c):
+                n = c.rotation[:, axis]  # the joint's normal ...
+                c0, c1 = _range_along(c, n)
+                q0, q1 = _range_along(q, n)
+                if max(q0 - c1, c0 - q1) > p.joined_gap or min(c1, q1) - max(c0, q0) > p.joined_gap:
+                    continue
+                across = [a for a in horizontal_axes(c) if a != axis]
+                if not across:
+                    continue
+                a = across[0]
+                u = c.rotation[:, a].copy()  # ... and the axis across it, away from the eye
+                if float(u @ (c.center - eye)) < 0:
+                    u = -u
+                c0, c1 = _range_along(c, u)
+                q0, q1 = _range_along(q, u)
+                if q0 > c1 or q1 < c0:  # not side by side
+                    continue
+                if q1 - c1 > p.joined_min:
+                    out.append((k, a, u, q1 - c1))
+    return sorted(out, key=lambda t: -t[3])
+
+
+def apply(arr, evidence, p: Params, ctx):
     if not evidence:
         return
+    arr = yield from _face_on(arr, evidence, p)
+    yield from _joined(arr, evidence, p)
+
+
+def _joined(arr, evidence, p: Params):
+    from ..evidence import slab_samples
+    from ..extend import Extension
+
+    done: set[int] = set()
+    for k, axis, u, full in joined_pushes(arr, evidence.eye, p):
+        if k in done:
+            continue
+        c = arr.cuboids[k]
+        side = 1 if float(c.rotation[:, axis] @ u) > 0 else 0
+        for j in range(p.steps, 0, -1):
+            length = full * j / p.steps
+            if evidence.seen_empty(slab_samples(arr, Extension(k, axis, side, length))):
+                continue
+            trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
+            if trial is None:
+                continue
+            changed = tuple(b for b, old in zip(trial.cuboids, arr.cuboids, strict=True)
+                            if b is not old)
+            v = yield Edit(changed, f"joined side by side to a deeper part of its object: "
+                                    f"pushed back {1000 * length:.0f} mm")
+            if v.ok:
+                arr = v.arrangement
+                done.add(k)
+                break
+    return arr
+
+
+def _face_on(arr, evidence, p: Params):
+    from ..extend import Extension
+
     eye = evidence.eye
     for k in range(len(arr.cuboids)):
         c = arr.cuboids[k]
@@ -108,6 +214,8 @@ def apply(arr, evidence, p: Params, ctx):
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
             target = min(width, object_depth(arr, c, axis),
                          object_reach(arr, c, u) + float(c.size[axis]) / 2)
+            if height < p.thin_fraction * width and single_part(arr, c):
+                target = min(target, stack_reach(arr, c, u, p.rest_gap))
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break
@@ -150,6 +258,7 @@ def apply(arr, evidence, p: Params, ctx):
                 if v.ok:
                     arr = v.arrangement
             break
+    return arr
 
 
 PRIOR = Prior("deepen", "complete", Params(), apply, principle_of(__doc__))

@@ -1,4 +1,4 @@
-"""Books in a row stand side by side: a row of upright boxes on one support.
+"""Books in a row stand side by side on their board, as deep as it is.
 
 Evidence: boxes resting on one upright support, their observed centres in the image, and
 the depth views.  Regularity: slabs standing on one board next to each other (books on a
@@ -8,11 +8,14 @@ other, a zig-zag in which true neighbours float apart.  A row is the boxes resti
 upright support (bottoms within ``rest_gap`` of its top, axes within ``axes_deg`` of
 its own, not parts of its object, ``min_height_rel`` times as tall as wide along it)
 linked by pairs overlapping along the support's long axis by ``overlap`` of the narrower
-while apart across it.  The row is ordered as the image shows it (noise moves a box
-along its ray, which the image does not see; by the fitted centres when the view looks
-along the row within ``along_deg``), each overlap is split at its middle (no box left
-narrower than ``min_width``), and each box's face away from the camera goes back to the
-row's farthest, through space no view saw empty.
+while apart across it.  The row (of one box or more) is ordered as the image shows it
+(noise moves a box along its ray, which the image does not see; by the fitted centres
+when the view looks along the row within ``along_deg``), each overlap is split at its
+middle (no box left narrower than ``min_width``), and each box's face away from the
+camera goes back to the row's farthest or the board's back edge (``to_board``; a book
+is seen by its spine, and the board under it says how deep the shelf is), no box deeper
+than it is tall, as far as no view saw the added space empty (tried shorter in
+``steps``).
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ class Params:
     min_height_rel: float = 2.0  #: a member is this many times as tall as wide
     along_deg: float = 20.0  #: degrees: a view this close to the row orders by centres
     min_width: float = 0.005  #: metres: no split leaves a member narrower
+    steps: int = 4  #: a push back into space a view saw empty is tried shorter in steps
+    to_board: bool = True  #: members go back to the board's back edge
 
 
 def _axis_towards(c: Cuboid, u: np.ndarray) -> tuple[int, float]:
@@ -119,7 +124,7 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def rows_by_support(arr: Arrangement, p: Params, min_members: int = 2):
+def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
     (bottoms within ``p.rest_gap`` of its top), yaws within ``p.axes_deg``
@@ -181,8 +186,6 @@ def apply(arr, evidence, p: Params, ctx):
         for n, k in enumerate(members):
             rows.setdefault(int(group[n]), []).append(k)
         for row in rows.values():
-            if len(row) < 2:
-                continue
             row.sort(key=lambda k: row_order(cubs[k], s, X, views, p.along_deg))
             lo = [xr[k][0] for k in row]
             hi = [xr[k][1] for k in row]
@@ -192,20 +195,31 @@ def apply(arr, evidence, p: Params, ctx):
                     hi[n], lo[n + 1] = mid, mid
             if any(h - l < p.min_width for l, h in zip(lo, hi)):
                 continue
-            # the face away from the camera goes back to the row's farthest one
+            # the face away from the camera goes back to the row's farthest one, or to
+            # the board's back edge, no member deeper than it is tall
             away = 1.0 if eye is None or float((s.center - eye) @ Y) >= 0 else -1.0
             back = max(yr[k][1] if away > 0 else -yr[k][0] for k in row)
+            s0, s1 = _range(s, s.center, Y)
+            if p.to_board:
+                back = max(back, s1 if away > 0 else -s0)
             new_boxes = []
             for n, k in enumerate(row):
                 c = cubs[k]
                 new = _with_range(c, s.center, X, lo[n], hi[n])
                 new = new.with_(observed=_observed_within(c, new, X))
                 y0, y1 = _range(new, s.center, Y)
-                a0, a1 = (y1, back) if away > 0 else (-back, y0)
-                if a1 > a0:
-                    added = _with_range(new, s.center, Y, a0, a1)
+                tall = zr[k][1] - zr[k][0]
+                a0, a1 = ((y1, min(back, max(y1, y0 + tall))) if away > 0
+                          else (max(-back, min(y0, y1 - tall)), y0))
+                for j in range(p.steps, 0, -1):  # as far back as no view saw empty
+                    b0, b1 = (a0, a0 + (a1 - a0) * j / p.steps) if away > 0 else (
+                        a1 - (a1 - a0) * j / p.steps, a1)
+                    if b1 - b0 <= 1e-4:
+                        break
+                    added = _with_range(new, s.center, Y, b0, b1)
                     if not evidence.seen_empty(box_samples(added)):
-                        new = _with_range(new, s.center, Y, min(y0, a0), max(y1, a1))
+                        new = _with_range(new, s.center, Y, min(y0, b0), max(y1, b1))
+                        break
                 new_boxes.append(new)
             v = yield Edit(tuple(new_boxes), f"a row of {len(row)} on {s.id} set side by side")
             if v.ok:

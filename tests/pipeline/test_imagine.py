@@ -239,6 +239,62 @@ def test_a_leg_seen_face_on_gets_depth_behind_it_up_to_its_width():
     assert ids == [] and out.cuboids[0] is side
 
 
+def _shelf_view(truth):
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.9, -2.0, 1.1), (0.0, 0.0, 0.5))
+    return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+
+def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
+    """A board's end meets its side panel face to face; the panel, fitted as the 3 cm
+    stick of its front edge, goes back to the board's back face, as far as the view
+    did not see the space empty (a post is not a panel)."""
+    left = box("left", (-0.265, 0.0, 0.5), (0.03, 0.3, 1.0), object="shelf")
+    right = box("right", (0.265, 0.0, 0.5), (0.03, 0.3, 1.0), object="shelf")
+    board = box("board", (0.0, 0.0, 0.5), (0.5, 0.3, 0.02), object="shelf")
+    stick = box("left", (-0.265, -0.135, 0.5), (0.03, 0.03, 1.0), object="shelf")
+    arr = Arrangement((stick, right, board), (ground(),))
+    out, ids = deepen_thin_boxes(arr, _shelf_view([left, right, board]))
+    assert ids == ["left"]
+    got = out.cuboid("left")
+    np.testing.assert_allclose(got.size, [0.03, 0.3, 1.0], atol=1e-9)
+    np.testing.assert_allclose(got.center, left.center, atol=1e-9)
+    # a post really 3 cm deep: the view saw the space behind it empty
+    post = box("left", (-0.265, -0.135, 0.5), (0.03, 0.03, 1.0), object="shelf")
+    out, ids = deepen_thin_boxes(arr, _shelf_view([post, right, board]))
+    assert ids == [] and out.cuboid("left") is stick
+    # a leg under a top is not joined to it side by side: it keeps its own depth
+    top = box("top", (0.0, 0.0, 1.01), (0.6, 0.3, 0.02), object="table")
+    leg = box("leg", (-0.265, -0.135, 0.5), (0.03, 0.03, 1.0), object="table")
+    out, ids = deepen_thin_boxes(Arrangement((leg, top), (ground(),)),
+                                 _shelf_view([leg, top]))
+    assert "leg" not in ids
+
+
+def test_a_flat_slab_seen_by_its_edge_is_as_deep_as_what_it_rests_on():
+    """A plank of its own on a block, fitted as the 6 cm of its near edge: it goes back
+    as far as the block under it and the weight on it reach, not to a square."""
+    block = box("block", (0.0, 0.0, 0.4), (0.2, 0.25, 0.8), object="block")
+    plank = box("plank", (0.0, 0.0, 0.815), (1.4, 0.25, 0.03), object="plank")
+    weight = box("weight", (-0.55, 0.0, 0.93), (0.15, 0.2, 0.2), object="weight")
+    edge = box("plank", (0.0, -0.095, 0.815), (1.4, 0.06, 0.03), object="plank")
+    views = _shelf_view([block, plank, weight])
+    out, ids = deepen_thin_boxes(Arrangement((block, edge, weight), (ground(),)), views)
+    assert "plank" in ids
+    got = out.cuboid("plank")
+    far = max(block.center[1] + 0.125, weight.center[1] + 0.1)  # the farther of the two
+    assert got.center[1] + got.size[1] / 2 == pytest.approx(far, abs=1e-6)
+    assert got.center[1] - got.size[1] / 2 == pytest.approx(-0.125, abs=1e-9)  # front kept
+    # alone on the floor, nothing says how deep it is but its width: a square, as before
+    alone = box("plank", (0.0, -0.095, 0.015), (1.4, 0.06, 0.03), object="plank")
+    out, ids = deepen_thin_boxes(Arrangement((alone,), (ground(),)),
+                                 _shelf_view([alone.with_(size=np.array([1.4, 1.4, 0.03]))]))
+    assert ids == ["plank"] and out.cuboid("plank").size[1] > 1.0
+
+
 def _oblique_row_view(angle_deg, height=0.3):
     """A row of three touching boxes seen at ``angle_deg`` from its front face's normal,
     from the middle box's mid height (its top and, beyond 0 degrees, the side turned

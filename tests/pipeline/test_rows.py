@@ -55,9 +55,10 @@ def test_a_zigzag_row_goes_back_side_by_side():
     np.testing.assert_allclose(_x(a), (-0.305, -0.27), atol=1e-12)
     np.testing.assert_allclose(_x(b), (-0.27, -0.2475), atol=1e-12)
     np.testing.assert_allclose(_x(c), (-0.2475, -0.205), atol=1e-12)
-    # front faces as seen, back faces at the row's farthest
+    # front faces as seen, back faces at the board's back edge (y = 0.15), no book
+    # deeper than it is tall (H = 0.25)
     for k, front in zip((a, b, c), (-0.14, -0.09, -0.14)):
-        np.testing.assert_allclose(_y(k), (front, -0.05), atol=1e-12)
+        np.testing.assert_allclose(_y(k), (front, min(0.15, front + H)), atol=1e-12)
         # the box still holds what the sensor saw of it (the refinement's constraint)
         o = k.observed
         assert np.all(np.abs(o.center - k.center) + o.size / 2 <= k.size / 2 + 1e-12)
@@ -114,10 +115,34 @@ def test_a_book_does_not_go_back_into_space_the_sensor_saw_empty():
     assert ids == ["a", "b", "c"]  # (still split side by side)
     np.testing.assert_allclose(_x(out.cuboid("c")), (-0.2475, -0.205), atol=1e-12)
     np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.11), atol=1e-12)
-    # ... while a book as deep as the row hides that space, and the fit goes back
+    # ... while a book as deep as the row hides that space, and the fit goes back, as
+    # far as the board reaches and the book is tall
     deep = [c if c.id != "c" else c.with_(center=np.array([c.center[0], -0.095, c.center[2]]),
                                           size=np.array([c.size[0], 0.09, c.size[2]]))
             for c in arr.cuboids]
     hidden = [DepthView(_depth_of_boxes(deep, T, intr), intr, T)]
     out, _ = resolve_rows(arr, hidden)
-    np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.05), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("c")), (-0.14, -0.14 + H), atol=1e-12)
+
+
+def test_a_lone_book_seen_by_its_spine_goes_back_to_the_board_edge():
+    """A book standing alone on a board, rendered from the front: only its spine is
+    fitted (1 cm deep); the space behind it is hidden by the book itself, and the
+    board under it says how deep the shelf is."""
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.2, -1.6, 0.75), (0.0, 0.0, 0.6))
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    true_book = box("book", (0.0, -0.03, TOP + 0.1), (0.04, 0.24, 0.2), object="book")
+    views = [DepthView(_depth_of_boxes([board, true_book], T, intr), intr, T)]
+    spine = _book("book", -0.02, 0.02, -0.15, -0.14, 0.2)
+    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)), spine),
+                      (ground(),))
+    out, ids = resolve_rows(arr, views)
+    assert ids == ["book"]
+    np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, 0.05), atol=1e-12)  # its height
+    # a board shallower than the book is tall stops it at the board's back edge
+    shallow = box("board", (0.0, -0.075, 0.5), (0.8, 0.15, 0.02), object="shelf")
+    arr2 = arr.with_(cuboids=(shallow.with_(observed=ObservedBox(shallow.center,
+                                                                  shallow.size)), spine))
+    out, _ = resolve_rows(arr2, views)
+    np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, 0.0), atol=1e-12)
