@@ -657,8 +657,9 @@ class Score:
 
     @property
     def mean_iou(self) -> float:
-        """Mean IoU over ground-truth cuboids (an unmatched one counts 0)."""
-        return float(self.iou.sum() / self.n_gt) if self.n_gt else 1.0
+        """Mean IoU over ground-truth cuboids (an unmatched one counts 0; NaN when the
+        truth has none: nothing to overlap, not a perfect score)."""
+        return float(self.iou.sum() / self.n_gt) if self.n_gt else float("nan")
 
     @property
     def matched_iou(self) -> float:
@@ -683,7 +684,7 @@ class Score:
             per.append(row)
         return {"n_pred": self.n_pred, "n_gt": self.n_gt, "graph_source": self.graph_source,
                 "optimized": self.optimized.to_json(), "initial": opt(self.initial),
-                "mean_iou": self.mean_iou, "matched_iou": _finite(self.matched_iou),
+                "mean_iou": _finite(self.mean_iou), "matched_iou": _finite(self.matched_iou),
                 "side_error": _finite(self.side_error), "size": opt(self.size), "cuboids": per,
                 "unmatched_pred": list(self.matching.unmatched_pred),
                 "unmatched_gt": list(self.matching.unmatched_gt),

@@ -78,7 +78,8 @@ def score_record(pred, gt, initial=None, graph: str = "union",  # noqa: ANN001
     from eval.metrics import contact_graph, score_arrangement, valence_stats
 
     s = score_arrangement(pred, gt, initial=initial, graph=graph)
-    rec: dict[str, Any] = {"n_pred": s.n_pred, "n_gt": s.n_gt, "mean_iou": s.mean_iou,
+    rec: dict[str, Any] = {"n_pred": s.n_pred, "n_gt": s.n_gt,
+                           "mean_iou": s.mean_iou if s.n_gt else None,
                            "n_matched": len(s.matching.pairs), "iou_sum": float(s.iou.sum()),
                            "side_abs": s.side_abs, "side_len": s.side_len}
     if unseen is not None:

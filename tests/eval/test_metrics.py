@@ -417,6 +417,17 @@ def test_score_truth_against_itself_is_perfect():
     assert s.mean_iou == pytest.approx(1.0)
 
 
+def test_mean_iou_is_undefined_against_an_empty_truth():
+    """Nothing to overlap is not a perfect overlap: NaN (None in JSON), whatever was
+    predicted."""
+    from pipeline.model import Arrangement
+
+    empty = Arrangement((), _stack_scene().supports)
+    s = score_arrangement(_stack_scene(), empty, graph="listed")
+    assert s.n_gt == 0 and np.isnan(s.mean_iou)
+    assert s.to_json()["mean_iou"] is None
+
+
 def test_initial_graph_from_geometry():
     pytest.importorskip("pipeline.contacts")
     gt = _stack_scene()
