@@ -35,6 +35,7 @@ import numpy as np
 
 from ..boxops import (
     broad_face,
+    changed_boxes,
     horizontal_axes,
     is_upright,
     object_depth,
@@ -173,9 +174,7 @@ def _joined(arr, evidence, p: Params):
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
                 continue
-            changed = tuple(b for b, old in zip(trial.cuboids, arr.cuboids, strict=True)
-                            if b is not old)
-            v = yield Edit(changed, f"joined side by side to a deeper part of its object: "
+            v = yield Edit(changed_boxes(trial, arr), f"joined side by side to a deeper part of its object: "
                                     f"pushed back {1000 * length:.0f} mm")
             if v.ok:
                 arr = v.arrangement
