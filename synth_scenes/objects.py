@@ -471,9 +471,10 @@ def bridge(rng: np.random.Generator, ranges: dict | None = None) -> Group:
         g.touch(deck, tops[s])
         g.touch(deck, tops[s + 1])
         n_items = _count(rng, r["items"])
-        place_items(rng, g, deck, [box_item(rng, 0.06, min(0.2, dd - 0.07))
-                                   for _ in range(n_items)],
-                    (left, right, -dd / 2, dd / 2), margin=0.02)
+        largest = min(0.2, dd - 0.07)  # a deck narrower than 13 cm carries nothing
+        if largest > 0.06:
+            place_items(rng, g, deck, [box_item(rng, 0.06, largest) for _ in range(n_items)],
+                        (left, right, -dd / 2, dd / 2), margin=0.02)
     return g
 
 

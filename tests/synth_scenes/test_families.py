@@ -312,3 +312,18 @@ def test_contacts_by_construction_property(name):
         assert {tuple(sorted(p)) for p in cs.pairs} == {c.key for c in arr.contacts}
 
     check()
+
+
+@pytest.mark.parametrize("seed", [498, 1875, 2103])
+def test_a_bridge_with_a_narrow_deck_is_built_and_carries_nothing(seed):
+    """These widened-range samples draw a deck under 13 cm deep, too narrow for the
+    smallest box (6 cm with 3.5 cm margins): the bridge is built with bare decks (the
+    sampler used to stop with 'high - low < 0')."""
+    from synth_scenes.families import WIDE
+    from synth_scenes.objects import bridge
+
+    g = bridge(np.random.default_rng(seed), WIDE["bridge"])
+    labels = [p.label.split(":")[0] for p in g.parts]
+    decks = [p for p, lab in zip(g.parts, labels) if lab == "deck"]
+    assert decks and all(lab in ("pillar", "deck") for lab in labels)
+    assert min(float(p.size[1]) for p in decks) < 0.13
