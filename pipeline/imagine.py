@@ -10,7 +10,7 @@
    Boxes nothing can hold up (their support was never seen) are set aside and the rest
    searched again (:data:`ISOLATE_ROUNDS`);
 3. the set-aside boxes come back, then the ``settle`` priors (glue relaxed, parts
-   anchored and grounded, hidden supports, gaps closed) on an arrangement with a
+   anchored to walls, gaps closed) on an arrangement with a
    contact graph and a verdict;
 4. the paper's *refinement* (:mod:`pipeline.refine`) when the result still carries
    residual energy above a hundredth of the threshold, and the *closing* of contact gaps

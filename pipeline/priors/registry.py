@@ -13,8 +13,6 @@ from .base import Prior
 from .close_gaps import PRIOR as _close_gaps
 from .copies import PRIOR as _copies
 from .deepen import PRIOR as _deepen
-from .ground_parts import PRIOR as _ground_parts
-from .hidden_supports import PRIOR as _hidden_supports
 from .join_parts import PRIOR as _join_parts
 from .mirror import PRIOR as _mirror
 from .object_yaw import PRIOR as _object_yaw
@@ -29,7 +27,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
     _rows, _deepen, _join_parts, _mirror, _copies,
-    _relax_glue, _anchor_parts, _ground_parts, _hidden_supports, _close_gaps)
+    _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.
 GROUPS: dict[str, tuple[str, ...]] = {"symmetry": ("mirror", "copies")}

@@ -52,7 +52,7 @@ class EditLog:
 
     @property
     def hallucinated(self) -> list[str]:
-        """Boxes the priors added (no observed box): copies, hidden supports."""
+        """Boxes the priors added (no observed box): the copies of hidden parts."""
         return list(self.added)
 
     def counts(self) -> dict[str, tuple[int, int]]:
