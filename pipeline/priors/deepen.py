@@ -10,12 +10,12 @@ slab standing on its edge that is a box of its own or shows a face of
 ``big_face`` metres: a box in a pile seen obliquely, a sofa's base) has its back face
 pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
-entered; a part goes no deeper than its object's other parts span along that axis, nor
-further than they reach behind it; a flat slab of its own (thinner than ``thin_fraction``
-of its width) no further than what it rests on and what rests on it reach behind it (a plank
-on a block seen end-on is not a square).  Blocked within a step by a broad face (a back
-cushion a few degrees askew to the sofa's back), it goes as deep as it fits, to
-``resolution``.
+entered.  A part goes no deeper than its object's other parts span along that axis, nor
+further than they reach behind it; a flat slab of its own (thinner than
+``thin_fraction`` of its width) no further than what it rests on and what rests on it
+(within ``rest_gap``) reach behind it: a plank on a block seen end-on is not a square.
+Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
+back), it goes as deep as it fits, to ``resolution``.
 
 The parts a part is joined to say how deep it is too: furniture is joined face to face
 (a board's end against its side panel, a seat cushion's end against an arm), so where
