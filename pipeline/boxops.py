@@ -226,6 +226,13 @@ def z_range(c: Cuboid) -> tuple[float, float]:
     return float(c.center[2]) - h, float(c.center[2]) + h
 
 
+def extent_along(c: Cuboid, u: np.ndarray) -> tuple[float, float]:
+    """(lowest, highest) of ``c``'s points projected on the unit vector ``u``."""
+    half = 0.5 * float(np.abs(c.rotation.T @ u) @ c.size)
+    m = float(c.center @ u)
+    return m - half, m + half
+
+
 def upright_extent(c: Cuboid) -> tuple[float, float]:
     """(height, largest horizontal extent) of a box, from its axes' z components."""
     ax = up_axis(c)

@@ -197,8 +197,7 @@ def geometry(records: Iterable[Mapping]) -> dict[str, float]:
 def geometry_cells(records: Iterable[Mapping]) -> list[str]:
     """The three cells of :data:`GEOMETRY_COLUMNS`: matched share (%), IoU, side error."""
     g = geometry(records)
-    return [pct(g["matched_share"]), "-" if g["iou"] != g["iou"] else f"{g['iou']:.3f}",
-            "-" if g["side_error"] != g["side_error"] else f"{g['side_error']:.3f}"]
+    return [pct(g["matched_share"]), dec(g["iou"]), dec(g["side_error"])]
 
 
 #: The keys of a :func:`score_record` that :func:`geometry` pools.
@@ -285,6 +284,11 @@ def pr_cell(agg: Mapping[str, float]) -> str:
 def pct(x: float, digits: int = 1) -> str:
     """A fraction as a percentage string (``nan`` stays ``-``)."""
     return "-" if x != x else f"{100 * x:.{digits}f}"
+
+
+def dec(x: float, digits: int = 3) -> str:
+    """A number with ``digits`` decimals (``nan`` stays ``-``)."""
+    return "-" if x != x else f"{x:.{digits}f}"
 
 
 #: Columns of :func:`pr_f1_rows` (the layout of the paper's Table 1, then geometry).

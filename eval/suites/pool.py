@@ -101,14 +101,11 @@ def figures(recs: list[dict]) -> dict:
 
 def table_row(name: str, f: dict) -> list:
     """A row of :data:`COLUMNS` from :func:`figures`."""
-    from eval.suites._common import interval_cell, pct
-
-    def num(x: float) -> str:
-        return "-" if x != x else f"{x:.3f}"
+    from eval.suites._common import dec, interval_cell, pct
 
     return [name, f["scenes"], pct(f["f1"]), interval_cell((f["f1_lo"], f["f1_hi"])),
-            pct(f["bound"]), pct(f["bound_share"]), pct(f["matched_share"]), num(f["iou"]),
-            num(f["side_error"]), pct(f["stands_analytic"], 0), pct(f["stands_mujoco"], 0),
+            pct(f["bound"]), pct(f["bound_share"]), pct(f["matched_share"]), dec(f["iou"]),
+            dec(f["side_error"]), pct(f["stands_analytic"], 0), pct(f["stands_mujoco"], 0),
             pct(f["stands_pybullet"], 0), f["refused"]]
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from ..boxops import (
     broad_face,
     changed_boxes,
+    extent_along,
     horizontal_axes,
     is_upright,
     object_depth,
@@ -98,18 +99,12 @@ def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
 def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
     """How far behind ``c``'s face against ``u`` the boxes reach that ``c`` rests on or
     that rest on it (within ``gap``); inf when there are none."""
-    near = _range_along(c, u)[0]
     below = resting_on(arr, c, gap)
-    touching = [q for q in arr.cuboids if q is not c and (
+    touching = [q for q in arr.cuboids if q.id != c.id and (
         (below is not None and q.id == below.id) or resting_on(arr, q, gap) is c)]
-    far = [_range_along(q, u)[1] for q in touching]
-    return max(far) - near if far else float("inf")
-
-
-def _range_along(c, u: np.ndarray) -> tuple[float, float]:
-    half = 0.5 * float(np.abs(c.rotation.T @ u) @ c.size)
-    m = float(c.center @ u)
-    return m - half, m + half
+    if not touching:
+        return float("inf")
+    return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
 
 
 def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
@@ -117,35 +112,29 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     camera at ``eye``) would reach the far face of a part of its object joined to it side
     by side (see the module docstring) when pushed out by ``length``; longest first."""
     out = []
-    cubs = arr.cuboids
-    for k, c in enumerate(cubs):
+    for k, c in enumerate(arr.cuboids):
         if c.object is None or c.extra.get("hallucinated") or not is_upright(c):
             continue
         cz0, cz1 = z_range(c)
-        for q in cubs:
+        for q in arr.cuboids:
             if q is c or q.object != c.object or not is_upright(q):
                 continue
             qz0, qz1 = z_range(q)
             if min(cz1, qz1) - max(cz0, qz0) < p.joined_share * min(cz1 - cz0, qz1 - qz0):
                 continue
-            for axis in horizontal_axes(c):
-                n = c.rotation[:, axis]  # the joint's normal ...
-                c0, c1 = _range_along(c, n)
-                q0, q1 = _range_along(q, n)
+            normal, across = horizontal_axes(c)
+            for n, a in ((normal, across), (across, normal)):
+                # faces meet along the joint's normal n ...
+                c0, c1 = extent_along(c, c.rotation[:, n])
+                q0, q1 = extent_along(q, c.rotation[:, n])
                 if max(q0 - c1, c0 - q1) > p.joined_gap or min(c1, q1) - max(c0, q0) > p.joined_gap:
                     continue
-                across = [a for a in horizontal_axes(c) if a != axis]
-                if not across:
-                    continue
-                a = across[0]
-                u = c.rotation[:, a].copy()  # ... and the axis across it, away from the eye
-                if float(u @ (c.center - eye)) < 0:
-                    u = -u
-                c0, c1 = _range_along(c, u)
-                q0, q1 = _range_along(q, u)
-                if q0 > c1 or q1 < c0:  # not side by side
-                    continue
-                if q1 - c1 > p.joined_min:
+                # ... and q reaches further across it, away from the eye
+                u = c.rotation[:, a] * (1.0 if float(c.rotation[:, a] @ (c.center - eye)) >= 0
+                                        else -1.0)
+                c0, c1 = extent_along(c, u)
+                q0, q1 = extent_along(q, u)
+                if q0 <= c1 and q1 >= c0 and q1 - c1 > p.joined_min:
                     out.append((k, a, u, q1 - c1))
     return sorted(out, key=lambda t: -t[3])
 
@@ -174,8 +163,9 @@ def _joined(arr, evidence, p: Params):
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
                 continue
-            v = yield Edit(changed_boxes(trial, arr), f"joined side by side to a deeper part of its object: "
-                                    f"pushed back {1000 * length:.0f} mm")
+            v = yield Edit(changed_boxes(trial, arr),
+                           f"joined side by side to a deeper part of its object: pushed back "
+                           f"{1000 * length:.0f} mm")
             if v.ok:
                 arr = v.arrangement
                 done.add(k)

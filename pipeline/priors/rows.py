@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import box_samples, is_upright, resting_on, turn_onto, turned_by
+from ..boxops import box_samples, extent_along, is_upright, resting_on, turn_onto, turned_by
 from ..camera import invert, project, transform
 from ..model import Arrangement, Cuboid, ObservedBox
 from .base import Edit, Prior, principle_of
@@ -51,9 +51,9 @@ def _axis_towards(c: Cuboid, u: np.ndarray) -> tuple[int, float]:
 
 def _range(c: Cuboid, origin: np.ndarray, u: np.ndarray) -> tuple[float, float]:
     """Extent of ``c`` along the unit vector ``u`` from ``origin``."""
-    half = 0.5 * float(np.abs(c.rotation.T @ u) @ c.size)
-    m = float((c.center - origin) @ u)
-    return m - half, m + half
+    lo, hi = extent_along(c, u)
+    m0 = float(origin @ u)
+    return lo - m0, hi - m0
 
 
 def _with_range(c: Cuboid, origin: np.ndarray, u: np.ndarray, lo: float, hi: float

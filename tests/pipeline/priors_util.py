@@ -65,29 +65,28 @@ def relax_fixed(final, **ctx_fields):
     return out, spy.call_count, len(accepted(report, "relax_glue"))
 
 
+def reason_pairs(report: EditLog, prior: str, pattern: re.Pattern, sep: str) -> list[str]:
+    """``a<sep>b`` for each accepted edit of ``prior``, from the two ids ``pattern``
+    reads in its reason (every reason must match)."""
+    out = []
+    for e in accepted(report, prior):
+        m = pattern.match(e.reason)
+        assert m is not None, e.reason
+        out.append(f"{m.group(1)}{sep}{m.group(2)}")
+    return out
+
+
 _CLOSED = re.compile(r"^(\S+) and (\S+) \d+ mm apart where no view saw the gap: closed$")
 
 
 def closed_pairs(report: EditLog) -> list[str]:
-    """The ``a|b`` pairs the accepted ``close_gaps`` edits closed (``b`` may be a wall),
-    read from each edit's reason."""
-    out = []
-    for e in accepted(report, "close_gaps"):
-        m = _CLOSED.match(e.reason)
-        assert m is not None, e.reason
-        out.append(f"{m.group(1)}|{m.group(2)}")
-    return out
+    """The ``a|b`` pairs the accepted ``close_gaps`` edits closed (``b`` may be a wall)."""
+    return reason_pairs(report, "close_gaps", _CLOSED, "|")
 
 
 _JOINED = re.compile(r"^(\S+) and (\S+), parts of one object, meet by a short extension$")
 
 
 def joined_pairs(report: EditLog) -> list[str]:
-    """``a+b`` for each pair of parts the accepted ``join_parts`` edits joined, read from
-    each edit's reason."""
-    out = []
-    for e in accepted(report, "join_parts"):
-        m = _JOINED.match(e.reason)
-        assert m is not None, e.reason
-        out.append(f"{m.group(1)}+{m.group(2)}")
-    return out
+    """``a+b`` for each pair of parts the accepted ``join_parts`` edits joined."""
+    return reason_pairs(report, "join_parts", _JOINED, "+")

@@ -20,6 +20,7 @@ from tests.pipeline.priors_util import (
     changed,
     closed_pairs,
     joined_pairs,
+    reason_pairs,
     relax_fixed,
     run,
 )
@@ -58,16 +59,14 @@ def join_parts(arr, views=None):
     return out, joined_pairs(report)
 
 
+_ANCHORED = re.compile(r"^(\S+), a part of \S+ hung on (\S+), fixed to it$")
+
+
 def anchor_parts(final, initial, edges):
     """The ``anchor_parts`` prior alone on the searched ``final``: (arrangement,
     ``part|wall`` for each part it fixed to a wall)."""
     out, report = run("anchor_parts", final, None, initial=initial, edges=edges)
-    done = []
-    for e in accepted(report, "anchor_parts"):
-        m = re.match(r"^(\S+), a part of \S+ hung on (\S+), fixed to it$", e.reason)
-        assert m is not None, e.reason
-        done.append(f"{m.group(1)}|{m.group(2)}")
-    return out, done
+    return out, reason_pairs(report, "anchor_parts", _ANCHORED, "|")
 
 
 def close_hidden_gaps(final, views, params=None):
