@@ -124,8 +124,7 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
         lines += [f"Even with every candidate contact fixed, these boxes cannot be held: "
                   f"{', '.join(rep.unstable)} (a support was probably not seen); "
                   "the result is the best effort.", ""]
-    if report0.get("notes"):
-        lines += ["Notes: " + "; ".join(report0["notes"]), ""]
+    lines += glue_section(final, rep.edits)
     lines += ["## Timings (seconds)", "", "| step | seconds |", "|---|---|"]
     lines += [f"| initial: {k} | {v:.3f} |" for k, v in report0["timings"].items() if k != "total"]
     lines += [f"| imagine: {k} | {v:.3f} |" for k, v in rep.timings.items()]
@@ -164,6 +163,31 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
     lines += ["", "## Contacts", "", "| a | b | type |", "|---|---|---|"]
     lines += [f"| {c.a} | {c.b} | {c.type} |" for c in final.contacts]
     return "\n".join(lines) + "\n"
+
+
+def glue_section(final, edits=()) -> list[str]:
+    """report.md's list of the ``fixed`` joints between different objects or with a
+    support, each with what it holds (:func:`pipeline.stability.glue_reasons`) or the
+    prior that set it (``edits``: the report's prior edits)."""
+    from pipeline.stability import glue_reasons
+
+    reasons = glue_reasons(final, mu=float(final.meta.get("mu", 0.7)))
+    if not reasons:
+        return []
+    lines = ["## Glue between objects", "",
+             "A `fixed` joint between different objects, or with the floor or a wall, is the "
+             "search's last resort (it minimises their number first).  Each one below, and "
+             "what cannot be held when it alone is loosened to a touch:", "",
+             "| a | b | without it |", "|---|---|---|"]
+    for c, moving, margin in reasons:
+        setter = next((e for e in edits if e.accepted and c.a in e.reason
+                       and c.b in e.reason and "fixed" in e.reason), None)
+        why = (f"{', '.join(moving)} cannot be held" if moving else
+               "stands, but not with gravity tilted by 2 deg (the search's margin)"
+               if not margin else f"stands too; set by the prior {setter.prior}: "
+               f"{setter.reason}" if setter else "stands too (the search's tie-break kept it)")
+        lines.append(f"| {c.a} | {c.b} | {why} |")
+    return lines + [""]
 
 
 def check_engines(arr, mu: float) -> dict:

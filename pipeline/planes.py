@@ -45,6 +45,16 @@ GROUND_LEVEL_MAX_DEG = 15.0
 #: The ground is the lowest upward plane holding at least this share of the largest
 #: upward plane's points (so a sofa seat below a table top does not win).
 GROUND_MIN_SHARE = 0.8
+#: The floor has (almost) nothing below it: when more than this share of the points lie
+#: :data:`BELOW_MARGIN` or more under the chosen plane, the plane is a table top or a seat
+#: and the floor is looked for lower down (:func:`lower_floor`).
+GROUND_MAX_BELOW = 0.05
+BELOW_MARGIN = 0.05
+#: A floor found under a table top must hold at least this many points (and this share of
+#: the points), within its normal this many degrees of the plane above.
+LOWER_FLOOR_MIN_POINTS = 300
+LOWER_FLOOR_MIN_SHARE = 0.002
+LOWER_FLOOR_MAX_DEG = 10.0
 #: A large horizontal plane this high above the ground with nothing above it is a ceiling.
 CEILING_MIN_HEIGHT = 1.8
 #: A vertical plane is a wall only if at most this fraction of the points lie behind it
@@ -324,6 +334,11 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         # the lowest large one: height along up of the plane = -offset; lowest = largest offset
         large = [c for c in cands if c.count >= GROUND_MIN_SHARE * biggest]
         g = max(large, key=lambda c: c.offset)
+        lower = lower_floor(points, g, thr, rng)
+        if lower is not None:
+            g, share = lower
+            notes = (f"floor: the largest level plane had {100 * share:.0f}% of the "
+                     "points below it (a table top); the floor is the level plane under them",)
     n_up = g.normal
 
     # world frame
@@ -406,6 +421,46 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         labels[on] = len(walls) + 1
         walls.append(wall)
     return SceneFrame(T, ground, tuple(walls), labels, planes, thr, source, notes)
+
+
+def lower_floor(points: np.ndarray, g: Plane, thr: float, rng: np.random.Generator
+                ) -> tuple[Plane, float] | None:
+    """The floor under ``g`` when ``g`` cannot be the floor, else None.
+
+    Nothing rests below a floor: if more than :data:`GROUND_MAX_BELOW` of the points lie
+    :data:`BELOW_MARGIN` or more under ``g`` (a table top filmed from above, the floor
+    only at the picture's edge), the floor is the lowest thin level slab under it that
+    RANSAC fits with a normal within :data:`LOWER_FLOOR_MAX_DEG` of ``g``'s, holding
+    enough points (:data:`LOWER_FLOOR_MIN_POINTS`, :data:`LOWER_FLOOR_MIN_SHARE`) and
+    itself with no more than that share below it.  Returns (that plane, the share of the
+    points that lay below ``g``), or None when ``g`` has
+    nothing under it or no such slab exists (then ``g`` stays: a tabletop scan)."""
+    d = points @ g.normal + g.offset
+    below = d < -max(BELOW_MARGIN, 3 * thr)
+    share = float(below.mean())
+    if share <= GROUND_MAX_BELOW:
+        return None
+    need = max(LOWER_FLOOR_MIN_POINTS, LOWER_FLOOR_MIN_SHARE * len(points))
+    width = 2.0 * thr
+    h = d[below]
+    lo = float(h.min())
+    edges = np.arange(lo, float(h.max()) + width, width)
+    counts, _ = np.histogram(h, bins=edges) if len(edges) > 1 else (np.zeros(0), None)
+    cos_max = np.cos(np.radians(LOWER_FLOOR_MAX_DEG))
+    for k in np.flatnonzero(counts >= need / 2):
+        mid = edges[k] + width / 2
+        slab = points[below][np.abs(h - mid) < 2 * width]
+        if len(slab) < need:
+            continue
+        nrm, off, cnt = ransac_plane(slab, thr, rng)
+        c = float(nrm @ g.normal)
+        if abs(c) < cos_max or cnt < need:
+            continue
+        nrm, off = (nrm, off) if c > 0 else (-nrm, -off)
+        if float(np.mean(points @ nrm + off < -max(BELOW_MARGIN, 3 * thr))) > GROUND_MAX_BELOW:
+            continue
+        return Plane(nrm, off, int(cnt)), share
+    return None
 
 
 def _any_perp(n: np.ndarray) -> np.ndarray:

@@ -3,6 +3,8 @@
 Priority: per-point instance ids from the input (``instance.png``, PCD ``label``) are
 used as they are; scribbled objects are cut out of the colour-and-depth image by
 GrabCut; whatever is left is clustered by proximity (Open3D DBSCAN on a voxel grid).
+Clusters of a depth image are then split where objects part in depth data
+(:func:`split_clusters`): depth steps and concave creases.
 """
 
 from __future__ import annotations
@@ -227,3 +229,201 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
                 labels[idx[lab == c]] = len(names)
                 names.append(f"cluster{len(names)}")
     return labels, names
+
+
+#: Face planes of a cluster: Open3D RANSAC planes (inlier distance :data:`PATCH_DIST`
+#: times the plane threshold), up to this many, each holding this share of the cluster.
+PATCH_MAX_PLANES = 16
+PATCH_MIN_SHARE = 0.005
+PATCH_DIST = 1.5
+#: RANSAC looks for each plane among at most this many of the cluster's points.
+PATCH_SAMPLE = 20000
+#: Two patches whose pixels come this close (pixels) are neighbours.
+PATCH_NEAR_PX = 4
+#: Neighbouring patches meeting concavely at more than this angle (degrees) are two
+#: objects; so are neighbours whose closest points lie a depth step apart.
+SPLIT_CREASE_DEG = 25.0
+SPLIT_STEP_REL = 0.03
+SPLIT_STEP_MIN = 0.04
+#: A piece must hold this share of its cluster (and ``min_points``) to become an object.
+SPLIT_MIN_SHARE = 0.01
+
+
+def _patches(points: np.ndarray, pix: np.ndarray, shape: tuple[int, int], dist: float,
+             min_points: int, seed: int = 0) -> np.ndarray:
+    """Per point the index of its planar patch (-1 none): RANSAC planes (Open3D, on at
+    most :data:`PATCH_SAMPLE` points; every point within ``dist`` of a plane is its),
+    each cut into the pieces that are connected in the image."""
+    import cv2
+    import open3d as o3d
+
+    out = np.full(len(points), -1, np.int64)
+    left = np.arange(len(points))
+    rng = np.random.default_rng(seed)
+    o3d.utility.random.seed(seed)
+    n_patch = 0
+    for _ in range(PATCH_MAX_PLANES):
+        if len(left) < max(min_points, 3):
+            break
+        sample = left if len(left) <= PATCH_SAMPLE else np.sort(
+            rng.choice(left, PATCH_SAMPLE, replace=False))
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[sample]))
+        plane, inl = pc.segment_plane(distance_threshold=dist, ransac_n=3, num_iterations=200)
+        if len(inl) * len(left) < min_points * len(sample):
+            break
+        a, b, c, d = plane
+        idx = left[np.abs(points[left] @ np.array([a, b, c]) + d) < dist]
+        mask = np.zeros(shape, np.uint8)
+        mask[pix[idx, 0], pix[idx, 1]] = 1
+        mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+        count, comp = cv2.connectedComponents(mask, connectivity=8)
+        c_of = comp[pix[idx, 0], pix[idx, 1]]
+        sizes = np.bincount(c_of, minlength=count)
+        for k in np.flatnonzero(sizes >= min_points):
+            if k:
+                out[idx[c_of == k]] = n_patch
+                n_patch += 1
+        left = np.setdiff1d(left, idx, assume_unique=True)
+    return out
+
+
+def _neighbours(patch: np.ndarray, pts: np.ndarray, pix: np.ndarray, shape: tuple[int, int]
+                ) -> dict[tuple[int, int], float]:
+    """Pairs of patches whose pixels come within :data:`PATCH_NEAR_PX` (along rows or
+    columns) -> the smallest 3D distance between two such pixels' points."""
+    H, W = shape
+    pimg = np.full(shape, -1, np.int64)
+    pimg[pix[:, 0], pix[:, 1]] = patch
+    ximg = np.zeros((H, W, 3))
+    ximg[pix[:, 0], pix[:, 1]] = pts
+    keys, gaps = [], []
+    for k in range(1, PATCH_NEAR_PX + 1):
+        for dv, du in ((0, k), (k, 0)):
+            a, b = pimg[:H - dv, :W - du], pimg[dv:, du:]
+            m = (a >= 0) & (b >= 0) & (a != b)
+            if not m.any():
+                continue
+            pa, pb = a[m], b[m]
+            gap = np.linalg.norm(ximg[:H - dv, :W - du][m] - ximg[dv:, du:][m], axis=1)
+            keys.append(np.minimum(pa, pb) * (patch.max() + 1) + np.maximum(pa, pb))
+            gaps.append(gap)
+    if not keys:
+        return {}
+    keys, gaps = np.concatenate(keys), np.concatenate(gaps)
+    uniq, inv = np.unique(keys, return_inverse=True)
+    best = np.full(len(uniq), np.inf)
+    np.minimum.at(best, inv, gaps)
+    P = int(patch.max()) + 1
+    return {(int(u // P), int(u % P)): float(g) for u, g in zip(uniq, best)}
+
+
+def _adopt(piece: np.ndarray, pts: np.ndarray, pix: np.ndarray, shape: tuple[int, int],
+           near: float = 0.05) -> None:
+    """Give every point of ``piece == -1`` the piece of its nearest owned point within
+    ``near`` metres, else of the nearest owned pixel in the image (in place)."""
+    import cv2
+    from scipy.spatial import cKDTree
+
+    owned = piece >= 0
+    if owned.all():
+        return
+    lost = np.flatnonzero(~owned)
+    d, nn = cKDTree(pts[owned]).query(pts[lost], distance_upper_bound=near)
+    hit = np.isfinite(d)
+    piece[lost[hit]] = piece[owned][nn[hit]]
+    lost = lost[~hit]
+    if len(lost):
+        free = np.ones(shape, np.uint8)
+        owners = np.flatnonzero(piece >= 0)
+        free[pix[owners, 0], pix[owners, 1]] = 0
+        _, lab = cv2.distanceTransformWithLabels(free, cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+        # label k is the k-th zero pixel in row-major order
+        zeros = np.flatnonzero(free.ravel() == 0)
+        owner_img = np.full(shape, -1, np.int64)
+        owner_img[pix[owners, 0], pix[owners, 1]] = piece[owners]
+        src = zeros[lab[pix[lost, 0], pix[lost, 1]] - 1]
+        piece[lost] = owner_img.ravel()[src]
+
+
+def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
+                   eye: np.ndarray, pixels: np.ndarray, shape: tuple[int, int],
+                   min_points: int, plane_threshold: float) -> tuple[np.ndarray, list[str]]:
+    """Split proximity clusters of a depth image into the objects they hold.
+
+    Evidence: the depth image's face planes.  Principle: touching objects part where one
+    stands on or against another, so that their faces meet in a concave crease, or
+    where one stands in front of another (a depth step); the faces of one convex box
+    meet only in convex creases, so a box is never cut into its faces.  Each cluster's
+    points are cut into planar patches (Open3D RANSAC planes, each split into its pieces
+    connected in the image, at least :data:`PATCH_MIN_SHARE` of the cluster).  Patches
+    whose pixels come within :data:`PATCH_NEAR_PX` are neighbours; neighbours are one
+    object unless their normals ``n`` (turned to the camera) and centroids ``x`` meet
+    concavely, ``(n1 - n2) . (x1 - x2) < 0`` at more than :data:`SPLIT_CREASE_DEG` (the
+    convexity test of Stein et al. 2014, LCCP), or their closest points lie a depth
+    step apart (:data:`SPLIT_STEP_REL` of the depth, at least :data:`SPLIT_STEP_MIN`).
+    The connected groups of patches holding at least :data:`SPLIT_MIN_SHARE` of the
+    cluster become objects; every other point of the cluster joins the nearest.  A
+    cluster with fewer than two such groups is kept whole (nothing separates it).
+    Instance and scribble labels are never split.
+
+    ``labels`` (n,), ``names`` as :func:`segment_objects` returns them; ``world`` (n, 3);
+    ``eye`` the camera centre (world); ``pixels`` (n, 2) (v, u); ``shape`` the image's.
+    Returns new (labels, names).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    out = np.full_like(labels, -1)
+    new_names: list[str] = []
+    cos_crease = np.cos(np.radians(SPLIT_CREASE_DEG))
+    for k, name in enumerate(names):
+        sel = np.flatnonzero(labels == k)
+        least = max(min_points, int(SPLIT_MIN_SHARE * len(sel)))
+        if not name.startswith("cluster") or len(sel) < 2 * least:
+            out[sel] = len(new_names)
+            new_names.append(name)
+            continue
+        pts, pix = world[sel], pixels[sel]
+        patch = _patches(pts, pix, shape, PATCH_DIST * plane_threshold,
+                         max(min_points, int(PATCH_MIN_SHARE * len(sel))))
+        P = int(patch.max()) + 1
+        if P < 2:
+            out[sel] = len(new_names)
+            new_names.append(name)
+            continue
+        cen = np.stack([pts[patch == p].mean(0) for p in range(P)])
+        nrm = []
+        for p in range(P):
+            q = pts[patch == p] - cen[p]
+            n = np.linalg.svd(q, full_matrices=False)[2][2]
+            nrm.append(n if n @ (eye - cen[p]) >= 0 else -n)
+        nrm = np.stack(nrm)
+        rows, cols = [], []
+        for (a, b), gap in _neighbours(patch, pts, pix, shape).items():
+            concave = ((nrm[a] - nrm[b]) @ (cen[a] - cen[b]) < 0
+                       and nrm[a] @ nrm[b] < cos_crease)
+            depth = float(min(np.linalg.norm(cen[a] - eye), np.linalg.norm(cen[b] - eye)))
+            step = gap > max(SPLIT_STEP_MIN, SPLIT_STEP_REL * depth)
+            if not (concave or step):
+                rows.append(a)
+                cols.append(b)
+        g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(P, P))
+        _, group = connected_components(g, directed=False)
+        piece = np.where(patch >= 0, group[np.maximum(patch, 0)], -1)
+        sizes = np.bincount(piece[piece >= 0], minlength=int(group.max()) + 1)
+        big = np.flatnonzero(sizes >= least)
+        if len(big) < 2:
+            out[sel] = len(new_names)
+            new_names.append(name)
+            continue
+        lut = np.full(len(sizes), -1, np.int64)
+        lut[big] = np.arange(len(big))
+        piece = np.where(piece >= 0, lut[np.maximum(piece, 0)], -1)
+        _adopt(piece, pts, pix, shape)
+        for q in range(len(big)):
+            out[sel[piece == q]] = len(new_names)
+            new_names.append("cluster")
+    # clusters are named by position, as segment_objects names them
+    return out, [f"cluster{i}" if nm.startswith("cluster") else nm
+                 for i, nm in enumerate(new_names)]

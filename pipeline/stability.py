@@ -105,7 +105,7 @@ from .load_path import (  # noqa: F401  (re-exported)
     _group_ids,
     load_path,
 )
-from .model import Arrangement, is_support_id  # noqa: F401  (re-exported)
+from .model import Arrangement, Contact, is_support_id  # noqa: F401  (re-exported)
 
 log = logging.getLogger(__name__)
 
@@ -609,6 +609,30 @@ def contact_force_newtons(arr: Arrangement, mu: float = DEFAULT_MU,
     return contacts, forces
 
 
+def glue_reasons(arr: Arrangement, mu: float = DEFAULT_MU, tilt_deg: float = 2.0
+                 ) -> list[tuple[Contact, list[str], bool]]:
+    """Why each glue joint is there: every ``fixed`` contact between different objects
+    or with a support, the boxes that cannot be held when it alone is loosened to a plain
+    touch, and (when those are none) whether the result then still stands with gravity
+    tilted by ``tilt_deg`` (the margin the search demands of every explanation).
+
+    The search takes a ``fixed`` joint between different objects only as a last resort
+    (it minimises their number first); this names, per joint, what it holds."""
+    objects = {c.id: c.object or c.id for c in arr.cuboids}
+    out = []
+    for k, c in enumerate(arr.contacts):
+        if c.type != "fixed" or (c.a in objects and c.b in objects
+                                 and objects[c.a] == objects[c.b]):
+            continue
+        loose = list(arr.contacts)
+        loose[k] = Contact(c.a, c.b, "touch")
+        loosened = arr.with_(contacts=tuple(loose))
+        res = check_stability(loosened, mu=mu)
+        margin = res.stable and check_stability(loosened, mu=mu, tilt_deg=tilt_deg).stable
+        out.append((c, [] if res.stable else res.unstable_ids, bool(margin)))
+    return out
+
+
 def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
     """The same system in newtons (rows multiplied back by their scale)."""
     S = sp.diags(system.row_scale)
@@ -617,4 +641,5 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
 
 
 __all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",
-           "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id"]
+           "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id",
+           "glue_reasons"]

@@ -62,6 +62,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help="expectation file (default: eval/suites/regression_expected.json)")
     reg.add_argument("--update", action="store_true",
                      help="rewrite the expectation file with the measured figures (exit 0)")
+    real = parser.add_argument_group("real suite only")
+    real.add_argument("--data", type=Path, default=None, metavar="DIR",
+                      help="the real scans (default: ../shared/data/real beside the checkout)")
     pool = parser.add_argument_group("pool and ablation suites only")
     pool.add_argument("--first-seed", type=int, default=None, metavar="S",
                       help="held-out pool: scene seeds S .. S+n-1 of every family (--n per "
@@ -104,6 +107,8 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
         cmd.append("--update")
     if getattr(args, "first_seed", None) is not None:
         cmd += ["--first-seed", str(args.first_seed)]
+    if getattr(args, "data", None) is not None:
+        cmd += ["--data", str(args.data)]
     return cmd
 
 

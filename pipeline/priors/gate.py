@@ -2,6 +2,9 @@
 
 An edit (:class:`pipeline.priors.base.Edit`) is rejected, with the reason, when
 
+0. **it collapses a box**: a box it changes or adds is thinner than :data:`MIN_SIDE`
+   along some axis (and was not before): no fit or clearing may leave a box without
+   volume (in every stage);
 1. **it enters another box**: a box it changes or adds overlaps another box, a wall or
    the floor by more than their contact tolerance, and deeper than before the edit
    (overlaps a fitted box already had may stay: removing them is the ``overlaps``
@@ -40,6 +43,8 @@ from .base import Context, Edit, Verdict
 #: the separating-axis depth of an unchanged pair moves by rounding when a box is
 #: rebuilt from its pushed faces.
 ENTER_TOL = 1e-6
+#: No edit may leave a box thinner than this (metres) along any axis (rule 0).
+MIN_SIDE = 1e-3
 #: Samples per axis of the volume an edit adds.
 SAMPLES = 5
 #: Gravity is tilted by this many degrees (towards +-x and +-y) in rule 3: the search's
@@ -140,7 +145,9 @@ def accept(arr: Arrangement, edit: Edit, evidence: Evidence, ctx: Context | None
     :class:`Verdict`."""
     ctx = ctx or Context()
     trial = apply_edit(arr, edit)
-    why = None
+    why = collapsed(arr, edit)
+    if why is not None:
+        return Verdict(False, arr, why)
     if stage != "prepare":
         why = entered(arr, trial, edit) or seen_empty(arr, edit, evidence)
     if why is not None:
@@ -161,6 +168,18 @@ def accept(arr: Arrangement, edit: Edit, evidence: Evidence, ctx: Context | None
         return Verdict(False, arr, f"{', '.join(sorted(falls))} would fall "
                                    f"(gravity tilted {TILT_DEG:g} deg)")
     return Verdict(True, cand)
+
+
+def collapsed(arr: Arrangement, edit: Edit) -> str | None:
+    """Rule 0: why ``edit`` collapses a box (thinner than :data:`MIN_SIDE`), or None."""
+    for c in edit.boxes:
+        thin = float(np.min(c.size))
+        if thin >= MIN_SIDE:
+            continue
+        old = arr.cuboids[arr.index[c.id]] if c.id in arr.index else None
+        if old is None or float(np.min(old.size)) >= MIN_SIDE:
+            return f"{c.id} would be {1000 * thin:.2g} mm thin (a box keeps a volume)"
+    return None
 
 
 def _falling(arr: Arrangement, ctx: Context) -> set[str]:

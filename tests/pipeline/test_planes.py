@@ -184,3 +184,34 @@ def test_a_plane_the_segmentation_gives_to_an_object_is_its_face_not_a_wall():
     assert abs(n[2]) < 0.05
     on_wall = (ids == 0) & (transform(both.T_world_input, pts)[:, 2] > 0.1)
     assert (both.labels[on_wall] == 1).mean() > 0.95
+
+
+def _level(rng, n, z, half=1.0, centre=(0.0, 0.0)):
+    xy = rng.uniform(-half, half, (n, 2)) + np.asarray(centre)
+    return np.column_stack([xy, np.full(n, z) + rng.normal(0, 0.002, n)])
+
+
+def test_a_table_top_with_the_room_below_it_is_not_taken_for_the_floor():
+    from pipeline.planes import lower_floor
+
+    rng = np.random.default_rng(0)
+    top = _level(rng, 6000, 0.75, 0.6)  # the largest level plane
+    seat = _level(rng, 1500, 0.45, 0.5, (1.5, 0.0))  # a sofa seat beside it
+    floor = _level(rng, 600, 0.0, 0.3, (0.0, -1.0))  # a glimpse of the floor
+    side = np.column_stack([rng.uniform(1.0, 2.0, 1500), np.full(1500, 0.5),
+                            rng.uniform(0.0, 0.45, 1500)])  # the sofa's front
+    pts = np.vstack([top, seat, floor, side])
+    fr = find_frame(pts, np.random.default_rng(1), up=np.array([0.0, 0.0, 1.0]))
+    assert any("floor" in n for n in fr.notes)
+    z = transform(fr.T_world_input, pts)[:, 2]
+    assert abs(np.median(z[-len(side) - len(floor):-len(side)])) < 0.01  # the floor at z = 0
+    assert abs(np.median(z[:len(top)]) - 0.75) < 0.01
+    # must not act: a table top filmed alone (nothing under it) stays the ground
+    alone = np.vstack([top, _level(rng, 800, 0.85, 0.1)])
+    fr = find_frame(alone, np.random.default_rng(1), up=np.array([0.0, 0.0, 1.0]))
+    assert fr.notes == () and abs(np.median(transform(fr.T_world_input, top)[:, 2])) < 0.01
+    # ... and neither does a floor with a little noise under it
+    from pipeline.planes import Plane
+
+    g = Plane(np.array([0.0, 0.0, 1.0]), 0.0, 1)
+    assert lower_floor(np.vstack([floor, _level(rng, 10, -0.2, 0.3)]), g, 0.01, rng) is None

@@ -538,3 +538,15 @@ def test_after_the_search_the_gate_refuses_an_edit_that_removes_the_only_support
     v = gate.accept(arr, hang, Evidence(), ctx, "settle")
     assert v.ok and {c.key: c.type for c in v.arrangement.contacts}[
         Contact("low", "up").key] == "fixed"
+
+
+def test_the_gate_refuses_an_edit_that_collapses_a_box_in_every_stage():
+    arr = _two_crates()
+    a = arr.cuboid("a")
+    flat = a.with_(size=np.array([a.size[0], 3e-4, a.size[2]]))
+    for stage in ("prepare", "complete", "settle"):
+        v = gate.accept(arr, Edit((flat,), "a cut to a sheet"), Evidence(), Context(), stage)
+        assert not v.ok and v.arrangement is arr and "thin" in v.reason, v.reason
+    # just above the limit it is an ordinary edit
+    thin = a.with_(size=np.array([a.size[0], 2 * gate.MIN_SIDE, a.size[2]]))
+    assert gate.accept(arr, Edit((thin,), "a thinned"), Evidence(), Context(), "prepare").ok
