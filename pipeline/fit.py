@@ -461,6 +461,59 @@ def slant_frame(normals: list[np.ndarray]) -> np.ndarray | None:
     return R
 
 
+#: A box turned within its one seen face (standing on an edge or a corner, leaning): the
+#: face's minimum-area rectangle must be turned by more than :data:`SLANT_MIN_DEG` from
+#: upright, fill at least this share of itself with the face's points (counted on a grid
+#: of half a voxel), be at most this share of the upright rectangle's area, and the face
+#: must hold this many points (a smaller face's outline is its sampling's).
+FACE_RECT_MIN_FILL = 0.7
+FACE_RECT_MAX_AREA = 0.85
+FACE_MIN_POINTS = 300
+
+
+def face_turn_frame(points: np.ndarray, normal: np.ndarray, threshold: float,
+                    cell: float) -> np.ndarray | None:
+    """Box frame (3, 3) of a box turned within its one large, near-vertical seen face,
+    or None.
+
+    Evidence: the outline of the face.  Principle: a face of a box is a rectangle; when
+    its minimum-area rectangle (OpenCV ``minAreaRect`` of the face's points in its
+    plane) is turned from upright by more than :data:`SLANT_MIN_DEG`, fills itself
+    (:data:`FACE_RECT_MIN_FILL` of it covered at half the voxel size ``cell``), holds
+    :data:`FACE_MIN_POINTS` points, and is clearly
+    smaller than the upright rectangle around the same points
+    (:data:`FACE_RECT_MAX_AREA`), the box is turned by that angle about the face's
+    normal: a board standing on its corner, a box leaning sideways on another.  The
+    surface normals cannot tell this turn (they all point along the face normal)."""
+    import cv2
+
+    n = np.asarray(normal, float)
+    if abs(n[2]) > np.sin(np.radians(SLANT_MIN_DEG)):
+        return None
+    n = np.array([n[0], n[1], 0.0]) / np.linalg.norm(n[:2])
+    u = np.cross([0.0, 0.0, 1.0], n)
+    on = np.abs((points - points.mean(0)) @ n) < threshold
+    if on.sum() < FACE_MIN_POINTS:
+        return None
+    xy = np.stack([points[on] @ u, points[on, 2]], axis=1).astype(np.float32)
+    (cx, cy), (w, h), ang = cv2.minAreaRect(xy)
+    turn = ang % 90.0
+    if min(turn, 90.0 - turn) <= SLANT_MIN_DEG:
+        return None
+    lo, hi = xy.min(0), xy.max(0)
+    upright_area = float(np.prod(hi - lo))
+    area = float(w * h)
+    g = cell / 2
+    cells = len(np.unique(np.floor(xy / g).astype(np.int64), axis=0))
+    if (area <= 0 or area > FACE_RECT_MAX_AREA * upright_area
+            or cells * g * g < FACE_RECT_MIN_FILL * area):
+        return None
+    t = np.radians(ang)
+    a1 = np.cos(t) * u + np.sin(t) * np.array([0.0, 0.0, 1.0])
+    a2 = np.cross(n, a1)
+    return np.stack([n, a1, a2], axis=1)
+
+
 def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
                solid: Callable[[np.ndarray], np.ndarray] | None = None,
                plane_threshold: float | None = None, min_points: int = 20,
@@ -483,8 +536,11 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     # a voxel must catch a point on every sampled surface, whatever the caller's cell
     cell = max(cell, 3.0 * point_spacing(points))
     thr = plane_threshold if plane_threshold is not None else 1.0 * cell
-    R = slant_frame(dominant_planes(points, thr, rng))
-    if R is not None and normals is not None and (
+    planes = dominant_planes(points, thr, rng)
+    R = slant_frame(planes)
+    if R is None and len(planes) == 1:
+        R = face_turn_frame(points, planes[0], thr, cell)
+    elif R is not None and normals is not None and (
             aligned_share(normals, upright_rotation(points, normals))
             >= aligned_share(normals, R) - SLANT_MARGIN):
         R = None  # the surface normals fit an upright frame as well: the planes were noise

@@ -32,7 +32,10 @@ it hold at least :data:`FOUND_SHARE` of its points.
 The support graph is scored on unordered pairs, untyped: a predicted contact between two
 matched objects (``ground`` reads as ``floor``, ``wall:k`` as ``wall``) is a pair; a
 contact inside one object or with an unmatched object says nothing about the labels and
-is left out.  Annotated relations with ``confidence`` of at least :data:`SURE` are the
+is left out.  A support graph says who rests on whom: its contacts are the ``fixed``
+ones and the ``touch`` contacts that carry load in the statics' solution
+(:attr:`pipeline.stability.StabilityResult.contact_load`); a lamp that merely grazes the
+wall behind it is no support.  ``contacts`` scores every listed contact instead.  Annotated relations with ``confidence`` of at least :data:`SURE` are the
 truth; less sure ones are do-not-care (neither missed nor false when predicted).
 ``fixed`` contacts between different predicted objects, or with the floor or a wall, are
 counted as glue.
@@ -252,9 +255,28 @@ def _support_name(name: str) -> str | None:
     return None
 
 
-def score(arr, points_input: np.ndarray, ann: Annotation) -> RealScore:
+def loaded_pairs(arr) -> set[tuple[str, str]]:
+    """The touching pairs of ``arr`` that carry load in the statics' solution (sorted
+    name pairs), at the arrangement's friction (``meta.mu``, else 0.7)."""
+    from pipeline.contacts import find_contacts
+    from pipeline.errors import InputError
+    from pipeline.stability import check_stability
+
+    cs = find_contacts(arr)
+    try:
+        res = check_stability(arr, mu=float(arr.meta.get("mu", 0.7)), contacts=cs)
+    except InputError:
+        return set()
+    load = res.contact_load if res.contact_load is not None else np.zeros(cs.count)
+    top = float(np.max(load)) if len(load) else 0.0
+    return {tuple(sorted(p)) for p, w in zip(cs.pairs, load.tolist()) if w > 1e-6 * top}
+
+
+def score(arr, points_input: np.ndarray, ann: Annotation, contacts: str = "support"
+          ) -> RealScore:
     """Score an arrangement (:class:`pipeline.model.Arrangement`) whose scan's points in
-    the input frame are ``points_input`` against ``ann``."""
+    the input frame are ``points_input`` against ``ann``; ``contacts``: ``support`` (the
+    fixed and load-bearing contacts) or ``all`` (every listed contact)."""
     labels = ann.labels(points_input)
     world = world_points(points_input, arr.meta)
     n_obj = len(ann.objects)
@@ -283,6 +305,7 @@ def score(arr, points_input: np.ndarray, ann: Annotation) -> RealScore:
     obj_of = {c.id: c.object or c.id for c in arr.cuboids}
     predicted: set[frozenset] = set()
     glue = glue_objects = 0
+    carry = loaded_pairs(arr) if contacts == "support" else None
     for ct in arr.contacts:
         ends = []
         for e in (ct.a, ct.b):
@@ -293,6 +316,8 @@ def score(arr, points_input: np.ndarray, ann: Annotation) -> RealScore:
             if None not in ends and ends[0] != ends[1] and not set(ends) & set(SUPPORTS):
                 glue_objects += 1
         if None in ends or ends[0] == ends[1]:
+            continue
+        if carry is not None and ct.type != "fixed" and ct.key not in carry:
             continue
         predicted.add(frozenset(ends))
     truth, unsure = ann.sure_pairs, ann.unsure_pairs
@@ -307,4 +332,4 @@ def score(arr, points_input: np.ndarray, ann: Annotation) -> RealScore:
 
 
 __all__ = ["Annotation", "AnnotationError", "LabelBox", "Relation", "RealScore", "annotations",
-           "load_annotation", "score", "world_points", "ANNOTATIONS", "DEFAULT_DATA"]
+           "load_annotation", "loaded_pairs", "score", "world_points", "ANNOTATIONS", "DEFAULT_DATA"]

@@ -61,7 +61,7 @@ def _result(contacts, shift=(0.0, 0.0, 0.0), objects=("A", "B")):
 def test_a_result_that_matches_the_labels_scores_one(tmp_path):
     ann = _stack_labels(tmp_path, [{"a": "top", "b": "low", "type": "on", "confidence": 0.9},
                                    {"a": "low", "b": "floor", "type": "on", "confidence": 0.9}])
-    res = _result([("b0", "b1", "touch"), ("b0", "ground", "touch")], shift=(2.0, -1.0, 0.5))
+    res = _result([("b0", "b1", "touch"), ("b0", "ground", "touch")], shift=(2.0, -1.0, 0.0))
     s = score(res, _points(), ann)
     assert (s.tp, s.fp, s.fn, s.found, s.glue) == (2, 0, 0, 2, 0)
     assert s.f1 == 1.0 and s.match == {"A": "low", "B": "top"}
@@ -74,7 +74,7 @@ def test_missed_added_and_do_not_care_pairs(tmp_path):
     # top glued to a wall (unsure in the labels: do-not-care), low-floor missed,
     # top on the floor (false)
     res = _result([("b0", "b1", "fixed"), ("b1", "wall:0", "fixed"), ("b1", "ground", "touch")])
-    s = score(res, _points(), ann)
+    s = score(res, _points(), ann, contacts="all")
     assert (s.tp, s.fp, s.fn) == (1, 1, 1)
     assert s.missed_pairs == [frozenset({"low", "floor"})]
     assert s.false_pairs == [frozenset({"top", "floor"})]
@@ -90,6 +90,21 @@ def test_parts_of_one_labelled_object_count_once_and_never_as_glue(tmp_path):
     s = score(res, _points(), ann)
     assert (s.tp, s.fp, s.fn, s.glue_between_objects) == (1, 0, 0, 0)
     assert s.predicted_objects == 2 and s.matched_objects == 2 and s.found == 1
+
+
+def test_the_support_graph_keeps_only_contacts_that_carry_load(tmp_path):
+    from pipeline.model import Support
+
+    ann = _stack_labels(tmp_path, [{"a": "top", "b": "low", "type": "on", "confidence": 0.9},
+                                   {"a": "low", "b": "floor", "type": "on", "confidence": 0.9}])
+    # the stack stands on the floor with its back flush against a wall it does not need
+    wall = Support("wall:0", np.array([0.0, 0.25, 0.0]), np.array([0.0, -1.0, 0.0]))
+    res = _result([("b0", "b1", "touch"), ("b0", "ground", "touch"), ("b0", "wall:0", "touch")])
+    res = res.with_(supports=res.supports + (wall,))
+    support, every = score(res, _points(), ann), score(res, _points(), ann, contacts="all")
+    assert (support.tp, support.fp, support.fn) == (2, 0, 0)
+    assert (every.tp, every.fp, every.fn) == (2, 1, 0)
+    assert every.false_pairs == [frozenset({"low", "wall"})]
 
 
 @pytest.mark.parametrize("bad, words", [

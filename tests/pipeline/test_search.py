@@ -704,3 +704,29 @@ def test_a_deck_short_of_two_pillars_comes_down_onto_both(monkeypatch):
     assert out.center[2] - out.size[2] / 2 == pytest.approx(h)
     for k in range(3):
         np.testing.assert_allclose(res.arrangement.cuboid(f"P{k + 1}").size, [0.24, 0.28, h])
+
+
+def test_extensions_of_two_search_groups_never_enter_each_other():
+    from pipeline.contacts import find_contacts
+    from pipeline.model import Arrangement, box, ground
+    from pipeline.search import _apart
+
+    fitted = Arrangement((box("a", (0.0, 0.0, 0.5), (0.2, 0.2, 0.2)),
+                          box("b", (0.6, 0.0, 0.5), (0.2, 0.2, 0.2))), (ground(),))
+    # group 1 grew a sideways by 0.5 m, 0.1 m into b; b is unchanged
+    grown = fitted.with_(cuboids=(box("a", (0.25, 0.0, 0.5), (0.7, 0.2, 0.2)),
+                                  fitted.cuboids[1]))
+    out = _apart(fitted, grown)
+    assert not find_contacts(out).penetrations
+    a = out.cuboids[0]
+    # a gave way, only as far as its extension: it still holds its fitted box and now
+    # ends at b's face (within the contact tolerance)
+    assert a.center[0] - a.size[0] / 2 <= -0.1 + 1e-9
+    assert 0.49 < a.center[0] + a.size[0] / 2 <= 0.5
+    assert out.cuboids[1] is fitted.cuboids[1]
+    # both grew into each other and neither can give way without cutting its fitted
+    # box: both go back to their fitted boxes
+    both = fitted.with_(cuboids=(box("a", (0.3, 0.0, 0.5), (0.8, 0.2, 0.2)),
+                                 box("b", (0.3, 0.0, 0.5), (0.8, 0.2, 0.2))))
+    out = _apart(fitted, both)
+    assert [c.size[0] for c in out.cuboids] == [0.2, 0.2]

@@ -78,3 +78,15 @@ def test_one_box_seen_on_three_faces_stays_one_object(tmp_path, yaw):
     boxes = [(np.array([0.0, 0.1, 0.3]), rotation_about_z(yaw), np.array([0.5, 0.4, 0.6]))]
     labels, truth, names = _objects(tmp_path, boxes)
     assert len(names) == 1, names
+
+
+@pytest.mark.parametrize("yaw", [0.4, 0.8])
+def test_a_shaded_box_seen_on_three_faces_stays_one_object(tmp_path, yaw):
+    # must not act: its faces differ in brightness (the ray-caster shades each face
+    # differently), not in kind
+    boxes = [(np.array([0.0, 0.1, 0.3]), rotation_about_z(yaw), np.array([0.5, 0.4, 0.6]))]
+    frame = raycast(boxes, EYE, TARGET)
+    scan = load(write_frame(frame, tmp_path / "frame"))
+    _, rep = initial(scan, RunConfig(seed=0))
+    assert len(rep["objects"]) == 1, rep["objects"]
+
