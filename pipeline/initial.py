@@ -40,6 +40,10 @@ NORMAL_RADIUS_CELLS = 4.0
 HANG_MIN_HEIGHT = 0.1
 #: Smallest voxel, metres (below the depth noise of any consumer sensor).
 MIN_CELL = 0.002
+#: Only boxes fitted to at least this many of their own points are snapped to the colour
+#: image's edges: a smaller box's silhouette is a few pixels of noisy outline (and in
+#: a cluttered room the snapping of dozens of such fragments cost seconds per frame).
+EDGE_MIN_POINTS = 300
 
 
 def _solid_test(scan: ScanInput, T_world_cam: np.ndarray, pix_label: np.ndarray,
@@ -301,6 +305,9 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
             # the box's own points: those of its object within a cell of it
             obj = world[labels == k]
             own = obj[np.all(np.abs((obj - b.center) @ b.rotation) <= b.size / 2 + cell, axis=1)]
+            if len(own) < EDGE_MIN_POINTS:
+                out.append((k, b))
+                continue
             c, R, info = refine_box(b.center, b.rotation, b.size, own, em, scan.intrinsics,
                                     T_world_cam, upright=not b.slanted)
             edge_infos.append(info)
