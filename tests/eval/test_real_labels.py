@@ -147,3 +147,12 @@ def test_every_labelled_object_holds_visible_points_of_its_scan():
         counts = np.bincount(a.labels(scan.points) + 1, minlength=len(a.objects) + 1)[1:]
         assert counts.min() >= 100, (a.name, dict(zip([o.id for o in a.objects], counts)))
     assert ANNOTATIONS.is_dir()
+
+
+def test_eval_real_without_the_data_says_where_to_point_it(tmp_path, capsys):
+    from eval.cli import main
+
+    rc = main(["eval", "real", "--out", str(tmp_path / "out"), "--data",
+               str(tmp_path / "nowhere")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "--data" in err[0] and "Traceback" not in err[0]
