@@ -77,6 +77,32 @@ def _rot(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * (K @ K)
 
 
+def _pixel_jacobian(pose: tuple[np.ndarray, np.ndarray], samples: np.ndarray,
+                    T_cw: np.ndarray, intr: Intrinsics, upright: bool) -> np.ndarray:
+    """(2m, k) derivative of the pixels of ``samples`` (box-local) under the box pose
+    ``(center, R)`` with respect to the pose parameters of :func:`refine_box` (yaw and
+    translation for an upright box, a rotation vector and translation otherwise).  The
+    rotation's derivative is taken at the current pose (``d(exp(w) v) ~ [dw]x v``): exact
+    for the yaw, first order for a rotation vector, which stays within 10 degrees."""
+    c, R = pose
+    arm = samples @ R.T  # sample offsets from the centre, world frame
+    q = (c + arm) @ T_cw[:3, :3].T + T_cw[:3, 3]
+    z = q[:, 2]
+    m = len(q)
+    dproj = np.zeros((m, 2, 3))
+    dproj[:, 0, 0] = intr.fx / z
+    dproj[:, 0, 2] = -intr.fx * q[:, 0] / z ** 2
+    dproj[:, 1, 1] = intr.fy / z
+    dproj[:, 1, 2] = -intr.fy * q[:, 1] / z ** 2
+    duv_dp = dproj @ T_cw[:3, :3]  # (m, 2, 3): pixel per world displacement
+    if upright:
+        dp_rot = np.stack([-arm[:, 1], arm[:, 0], np.zeros(m)], axis=1)[:, :, None]
+    else:  # d(p)/d(w_k) = e_k x arm
+        dp_rot = np.stack([np.cross(np.eye(3)[k], arm) for k in range(3)], axis=2)
+    cols = [duv_dp @ dp_rot, duv_dp]
+    return np.concatenate(cols, axis=2).reshape(2 * m, -1)
+
+
 def silhouette_samples(center: np.ndarray, R: np.ndarray, size: np.ndarray,
                        T_cam_world: np.ndarray, intr: Intrinsics,
                        step_px: float = 3.0) -> np.ndarray:
@@ -151,7 +177,10 @@ def refine_box(center: np.ndarray, R: np.ndarray, size: np.ndarray, points: np.n
             u2, _ = uv_of(xx)
             return (u2[use] - target).ravel()
 
-        sol = least_squares(resid, x, loss="soft_l1", f_scale=2.0, max_nfev=30)
+        def jac(xx: np.ndarray, use: np.ndarray = use) -> np.ndarray:
+            return _pixel_jacobian(pose(xx), samples[use], T_cw, intr, upright)
+
+        sol = least_squares(resid, x, jac=jac, loss="soft_l1", f_scale=2.0, max_nfev=30)
         if np.allclose(sol.x, x, atol=1e-7):
             break
         x = sol.x

@@ -83,3 +83,30 @@ def test_refinement_rejected_when_points_disagree():
     assert not info["accepted"]
     assert np.array_equal(c1, c0) and np.array_equal(R1, R)
     assert info["fit_after"] > info["fit_before"] == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("upright", [True, False])
+def test_the_pixel_jacobian_of_the_edge_fit_matches_finite_differences(upright):
+    from pipeline.camera import look_at
+    from pipeline.edges import _pixel_jacobian, _rot
+
+    intr = Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+    T_cw = invert(look_at(np.array([0.3, -2.0, 1.2]), np.array([0.0, 0.0, 0.4])))
+    R = _rot(np.array([0.1, -0.2, 0.3]))
+    c, size = np.array([0.1, 0.2, 0.4]), np.array([0.4, 0.3, 0.5])
+    s = silhouette_samples(c, R, size, T_cw, intr)
+
+    def pose(x):
+        w = np.array([0.0, 0.0, x[0]]) if upright else x[:3]
+        return c + (x[1:4] if upright else x[3:6]), _rot(w) @ R
+
+    def pixels(x):
+        cc, Rx = pose(x)
+        return project(transform(T_cw, cc + s @ Rx.T), intr)[0].ravel()
+
+    x = np.zeros(4 if upright else 6)
+    J = _pixel_jacobian(pose(x), s, T_cw, intr, upright)
+    numeric = np.stack([(pixels(x + 1e-6 * e) - pixels(x - 1e-6 * e)) / 2e-6
+                        for e in np.eye(len(x))], axis=1)
+    assert J.shape == numeric.shape
+    assert np.abs(J - numeric).max() < 1e-5 * np.abs(numeric).max()
