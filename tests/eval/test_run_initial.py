@@ -250,11 +250,17 @@ REAL_SLOW = [  # every real scan, each with no flag (known layouts) or the docum
 ]
 
 
+#: Ground points each scan must give; 5,000 unless named.  Shao's 5-box frame shows its
+#: floor only at the picture's bottom edge (the table top above it is not the floor:
+#: tests/eval/test_real_scans.py checks the table stands 0.65-0.8 m above it).
+MIN_GROUND = {"shao_kinect_boxes/5boxes_depth16bits.dat": 1_000}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("where", "flags"), REAL_SLOW, ids=[f"{w}{'-' + f[3] if f else ''}" for w, f in REAL_SLOW])
 def test_every_real_scan_runs_and_finds_its_ground(tmp_path, capsys, real_data, where, flags):
     arr, ground_pts = _run_real(capsys, tmp_path / "o", real_data / where, *flags)
-    assert ground_pts > 5_000 and len(arr.cuboids) >= 1
+    assert ground_pts > MIN_GROUND.get(where, 5_000) and len(arr.cuboids) >= 1
     data = json.loads((tmp_path / "o" / "arrangement.json").read_text())
     assert data["supports"][0]["id"] == "ground"
 
