@@ -180,8 +180,7 @@ def glue_section(final, edits=()) -> list[str]:
              "what cannot be held when it alone is loosened to a touch:", "",
              "| a | b | without it |", "|---|---|---|"]
     for c, moving, margin in reasons:
-        setter = next((e for e in edits if e.accepted and c.a in e.reason
-                       and c.b in e.reason and "fixed" in e.reason), None)
+        setter = next((e for e in edits if e.accepted and c.key in e.fixed), None)
         why = (f"{', '.join(moving)} cannot be held" if moving else
                "stands, but not with gravity tilted by 2 deg (the search's margin)"
                if not margin else f"stands too; set by the prior {setter.prior}: "

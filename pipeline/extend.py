@@ -114,6 +114,44 @@ def apply_offsets(arr: Arrangement, offsets: np.ndarray, memo: dict | None = Non
     return arr.with_(cuboids=tuple(cubs))
 
 
+def apart(arr: Arrangement, geom: Arrangement) -> Arrangement:
+    """``geom`` (``arr`` extended group by group) with no box entering another that did
+    not enter it in ``arr``.
+
+    Groups are searched independently, each against its own boxes only, so an extension
+    of one group may grow into a box, or an extension, of another.  For each such pair
+    the box whose overlapping face can move back without cutting into its fitted box
+    (``arr``'s) is trimmed clear of the other (:func:`pipeline.boxops.trimmed`); when
+    neither can, both go back to their fitted boxes."""
+    from .boxops import trimmed
+    from .contacts import find_contacts
+
+    def key(a: str, b: str) -> tuple[str, str]:
+        return (a, b) if a <= b else (b, a)
+
+    before = {key(a, b) for a, b, _ in find_contacts(arr).penetrations}
+    cubs = list(geom.cuboids)
+    for _ in range(2 * len(cubs)):
+        cur = geom.with_(cuboids=tuple(cubs))
+        new = [(a, b) for a, b, _ in find_contacts(cur).penetrations
+               if b in cur.index and key(a, b) not in before]
+        if not new:
+            break
+        a, b = new[0]
+        i, j = cur.index[a], cur.index[b]
+        done = False
+        for k, other in ((i, j), (j, i)):
+            c = trimmed(cubs[k], cubs[other])
+            fit = arr.cuboids[k]
+            local = (fit.corners() - c.center) @ c.rotation
+            if c is not cubs[k] and np.all(np.abs(local) <= c.size / 2 + 1e-6):
+                cubs[k], done = c, True
+                break
+        if not done:
+            cubs[i], cubs[j] = arr.cuboids[i], arr.cuboids[j]
+    return geom.with_(cuboids=tuple(cubs))
+
+
 def offsets_of(extensions, K: int) -> np.ndarray:
     """Per-face offsets of a set of extensions (the longest wins on a shared face)."""
     off = np.zeros((K, 3, 2))
@@ -369,7 +407,7 @@ def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthVi
     return out, rejected
 
 
-__all__ = ["Extension", "Option", "Edge", "apply_offsets", "offsets_of", "candidate_edges",
+__all__ = ["Extension", "Option", "Edge", "apart", "apply_offsets", "offsets_of", "candidate_edges",
            "pair_edges", "support_edges", "prune_penetrating", "DepthView", "prune_by_visibility",
            "visible_free_fraction", "visible_free_mask", "seen_in_front", "slab_samples", "depth_noise",
            "is_support_id"]

@@ -442,14 +442,14 @@ def lower_floor(points: np.ndarray, g: Plane, thr: float, rng: np.random.Generat
         return None
     need = max(LOWER_FLOOR_MIN_POINTS, LOWER_FLOOR_MIN_SHARE * len(points))
     width = 2.0 * thr
-    h = d[below]
+    h, under = d[below], points[below]
     lo = float(h.min())
     edges = np.arange(lo, float(h.max()) + width, width)
     counts, _ = np.histogram(h, bins=edges) if len(edges) > 1 else (np.zeros(0), None)
     cos_max = np.cos(np.radians(LOWER_FLOOR_MAX_DEG))
     for k in np.flatnonzero(counts >= need / 2):
         mid = edges[k] + width / 2
-        slab = points[below][np.abs(h - mid) < 2 * width]
+        slab = under[np.abs(h - mid) < 2 * width]
         if len(slab) < need:
             continue
         nrm, off, cnt = ransac_plane(slab, thr, rng)

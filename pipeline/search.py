@@ -63,7 +63,7 @@ from .contacts import (
     update_contacts,
 )
 from .errors import InputError
-from .extend import Edge, Option, apply_offsets, offsets_of
+from .extend import Edge, Option, apart, apply_offsets, offsets_of
 from .model import Arrangement, Contact, StabilitySummary
 from .stability import check_stability
 
@@ -812,49 +812,12 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
                 n_fixed += int(not e.same_object)
         if progress is not None:
             progress(gi + 1, len(groups))
-    geom = _apart(arr, apply_offsets(arr, offsets_of(all_exts, K)))
+    geom = apart(arr, apply_offsets(arr, offsets_of(all_exts, K)))
     added = float(np.sum(np.prod(geom.sizes, axis=1) - np.prod(arr.sizes, axis=1)))
     final = finalize(geom, contacts, mu=mu, threshold=threshold)
     stats.seconds = time.perf_counter() - t0
     stable = bool(final.stability.stable) if final.stability else False
     return SearchResult(final, stable, n_fixed, added, tuple(unstable), stats, choices)
-
-
-def _apart(arr: Arrangement, geom: Arrangement) -> Arrangement:
-    """``geom`` (``arr`` extended group by group) with no box entering another that did
-    not enter it in ``arr``.
-
-    Groups are searched independently, each against its own boxes only, so an extension
-    of one group may grow into a box, or an extension, of another.  For each such pair
-    the box whose overlapping face can move back without cutting into its fitted box
-    (``arr``'s) is trimmed clear of the other (:func:`pipeline.boxops.trimmed`); when
-    neither can, both go back to their fitted boxes."""
-    from .boxops import trimmed
-
-    def key(a: str, b: str) -> tuple[str, str]:
-        return (a, b) if a <= b else (b, a)
-
-    before = {key(a, b) for a, b, _ in find_contacts(arr).penetrations}
-    cubs = list(geom.cuboids)
-    for _ in range(2 * len(cubs)):
-        cur = geom.with_(cuboids=tuple(cubs))
-        new = [(a, b) for a, b, _ in find_contacts(cur).penetrations
-               if b in cur.index and key(a, b) not in before]
-        if not new:
-            break
-        a, b = new[0]
-        i, j = cur.index[a], cur.index[b]
-        done = False
-        for k, other in ((i, j), (j, i)):
-            c = trimmed(cubs[k], cubs[other])
-            fit = arr.cuboids[k]
-            local = (fit.corners() - c.center) @ c.rotation
-            if c is not cubs[k] and np.all(np.abs(local) <= c.size / 2 + 1e-6):
-                cubs[k], done = c, True
-                break
-        if not done:
-            cubs[i], cubs[j] = arr.cuboids[i], arr.cuboids[j]
-    return geom.with_(cuboids=tuple(cubs))
 
 
 def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,

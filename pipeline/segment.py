@@ -403,13 +403,12 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
             out[sel] = len(new_names)
             new_names.append(name)
             continue
-        cen = np.stack([pts[patch == p].mean(0) for p in range(P)])
-        nrm = []
-        for p in range(P):
-            q = pts[patch == p] - cen[p]
-            n = np.linalg.svd(q, full_matrices=False)[2][2]
-            nrm.append(n if n @ (eye - cen[p]) >= 0 else -n)
-        nrm = np.stack(nrm)
+        cen, nrm = np.zeros((P, 3)), np.zeros((P, 3))
+        for p in range(P):  # centroid and plane normal (turned to the camera) per patch
+            q = pts[patch == p]
+            cen[p] = q.mean(0)
+            n = np.linalg.svd(q - cen[p], full_matrices=False)[2][2]
+            nrm[p] = n if n @ (eye - cen[p]) >= 0 else -n
         rows, cols = [], []
         for (a, b), (ia, ib) in _neighbours(patch, pix, shape).items():
             # a step: the points of each side, where the two meet in the picture, lie

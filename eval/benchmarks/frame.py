@@ -14,10 +14,9 @@ import time
 from pathlib import Path
 
 from eval.benchmarks import BenchTable
+from eval.real import DEFAULT_DATA as REAL
 
 TITLE = "Frame to arrangement: a 640x480 frame through the whole pipeline"
-
-REAL = Path(__file__).resolve().parents[2].parent / "shared" / "data" / "real"
 FRAMES = (("Shao 3 boxes", "shao_kinect_boxes/3boxes_depth16bits.dat"),
           ("Shao 5 boxes", "shao_kinect_boxes/5boxes_depth16bits.dat"),
           ("NYU 00000 (Metric3D)", "metric3d_nyu/sync_depth_00000.png"),

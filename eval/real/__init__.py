@@ -215,18 +215,20 @@ class RealScore:
     missed_pairs: list = field(default_factory=list)
     match: dict = field(default_factory=dict)  #: predicted object -> annotated id
 
+    #: (tp, fp, fn) over every listed contact (the other scoring of the same match)
+    every: tuple[int, int, int] = (0, 0, 0)
+
     @property
     def precision(self) -> float:
-        return self.tp / (self.tp + self.fp) if self.tp + self.fp else float("nan")
+        return prf(self.tp, self.fp, self.fn)[0]
 
     @property
     def recall(self) -> float:
-        return self.tp / (self.tp + self.fn) if self.tp + self.fn else float("nan")
+        return prf(self.tp, self.fp, self.fn)[1]
 
     @property
     def f1(self) -> float:
-        d = 2 * self.tp + self.fp + self.fn
-        return 2 * self.tp / d if d else float("nan")
+        return prf(self.tp, self.fp, self.fn)[2]
 
     def to_json(self) -> dict:
         out = {k: getattr(self, k) for k in ("objects", "found", "predicted_objects",
@@ -235,7 +237,15 @@ class RealScore:
         out["false_pairs"] = [sorted(p) for p in self.false_pairs]
         out["missed_pairs"] = [sorted(p) for p in self.missed_pairs]
         out["match"] = dict(self.match)
+        out["all_contacts"] = dict(zip(("tp", "fp", "fn"), self.every))
         return out
+
+
+def prf(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
+    """(precision, recall, F1) of pair counts; NaN where a ratio has nothing to count."""
+    nan = float("nan")
+    return (tp / (tp + fp) if tp + fp else nan, tp / (tp + fn) if tp + fn else nan,
+            2 * tp / (2 * tp + fp + fn) if 2 * tp + fp + fn else nan)
 
 
 def world_points(points_input: np.ndarray, meta: dict) -> np.ndarray:
@@ -303,9 +313,10 @@ def score(arr, points_input: np.ndarray, ann: Annotation, contacts: str = "suppo
     found = int(np.sum((counts > 0) & (covered >= FOUND_SHARE * counts)))
     owner = {c.id: match.get(c.object or c.id) for c in arr.cuboids}
     obj_of = {c.id: c.object or c.id for c in arr.cuboids}
-    predicted: set[frozenset] = set()
+    support: set[frozenset] = set()
+    every: set[frozenset] = set()
     glue = glue_objects = 0
-    carry = loaded_pairs(arr) if contacts == "support" else None
+    carry = loaded_pairs(arr)
     for ct in arr.contacts:
         ends = []
         for e in (ct.a, ct.b):
@@ -317,19 +328,24 @@ def score(arr, points_input: np.ndarray, ann: Annotation, contacts: str = "suppo
                 glue_objects += 1
         if None in ends or ends[0] == ends[1]:
             continue
-        if carry is not None and ct.type != "fixed" and ct.key not in carry:
-            continue
-        predicted.add(frozenset(ends))
+        every.add(frozenset(ends))
+        if ct.type == "fixed" or ct.key in carry:
+            support.add(frozenset(ends))
     truth, unsure = ann.sure_pairs, ann.unsure_pairs
-    scored = predicted - unsure
-    tp = len(scored & truth)
-    false = sorted(scored - truth, key=sorted)
-    missed = sorted(truth - predicted, key=sorted)
+
+    def counts_of(predicted: set[frozenset]) -> tuple[int, list, list]:
+        scored = predicted - unsure
+        return (len(scored & truth), sorted(scored - truth, key=sorted),
+                sorted(truth - predicted, key=sorted))
+
+    tp_all, false_all, missed_all = counts_of(every)
+    tp, false, missed = counts_of(support if contacts == "support" else every)
     return RealScore(objects=n_obj, found=found, predicted_objects=len(by_object),
                      matched_objects=len(match), tp=tp, fp=len(false), fn=len(missed),
                      glue=glue, glue_between_objects=glue_objects, false_pairs=false,
-                     missed_pairs=missed, match=match)
+                     missed_pairs=missed, match=match,
+                     every=(tp_all, len(false_all), len(missed_all)))
 
 
 __all__ = ["Annotation", "AnnotationError", "LabelBox", "Relation", "RealScore", "annotations",
-           "load_annotation", "loaded_pairs", "score", "world_points", "ANNOTATIONS", "DEFAULT_DATA"]
+           "load_annotation", "loaded_pairs", "prf", "score", "world_points", "ANNOTATIONS", "DEFAULT_DATA"]

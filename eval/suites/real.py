@@ -43,9 +43,7 @@ def real_task(rng, name: str, scan: str, out: str, seed: int = 0) -> dict:  # no
         write_full_outputs(tmp, result.scan, result.initial, result, result.initial_report,
                            engines, f"unseen run {Path(scan).name}", seed)
     s = score(arr, _input_points(result), ann)
-    every = score(arr, _input_points(result), ann, contacts="all")
     return {"name": name, "group": ann.group, **s.to_json(),
-            "all_contacts": {k: getattr(every, k) for k in ("tp", "fp", "fn")},
             "stable": bool(result.report.stable),
             "stands_in": {e: bool(engines[e]["stable"]) for e in ENGINES}}
 
@@ -56,19 +54,13 @@ def _input_points(result):  # noqa: ANN001, ANN202
     return result.scan.points / s
 
 
-def _f1(tp: int, fp: int, fn: int) -> tuple[float, float, float]:
-    nan = float("nan")
-    p = tp / (tp + fp) if tp + fp else nan
-    r = tp / (tp + fn) if tp + fn else nan
-    f = 2 * tp / (2 * tp + fp + fn) if 2 * tp + fp + fn else nan
-    return p, r, f
-
-
 def group_figures(recs: list[dict]) -> dict:
     """Micro-averaged support P/R/F1, objects found, glue, stand fractions of ``recs``."""
+    from eval.real import prf
+
     tp, fp, fn = (sum(r[k] for r in recs) for k in ("tp", "fp", "fn"))
-    p, r, f = _f1(tp, fp, fn)
-    f_all = _f1(*(sum(x["all_contacts"][k] for x in recs) for k in ("tp", "fp", "fn")))[2]
+    p, r, f = prf(tp, fp, fn)
+    f_all = prf(*(sum(x["all_contacts"][k] for x in recs) for k in ("tp", "fp", "fn")))[2]
     n = max(len(recs), 1)
     return {"scans": len(recs), "objects": sum(x["objects"] for x in recs),
             "found": sum(x["found"] for x in recs),

@@ -28,6 +28,8 @@ class EditRecord:
     reason: str
     accepted: bool
     why_not: str = ""
+    #: the (sorted) pairs the edit fixed that were not fixed before (not in ``to_json``)
+    fixed: tuple[tuple[str, str], ...] = ()
 
     def to_json(self) -> dict:
         return {"prior": self.prior, "stage": self.stage, "boxes": list(self.boxes),
@@ -82,8 +84,10 @@ def run_stage(stage: str, arr: Arrangement, evidence: Evidence, ctx: Context, co
                 break
             verdict = accept(arr, edit, evidence, ctx, stage)
             new = [c.id for c in edit.boxes if c.id not in arr.index]
+            fixed = () if edit.fixed is None else tuple(sorted(
+                {c.key for c in edit.fixed if c.type == "fixed"} - arr.fixed_pairs()))
             report.edits.append(EditRecord(prior.name, stage, edit.ids, edit.reason,
-                                           verdict.ok, verdict.reason))
+                                           verdict.ok, verdict.reason, fixed))
             if verdict.ok:
                 arr = verdict.arrangement
                 report.added += [i for i in new if i not in report.added]

@@ -708,15 +708,15 @@ def test_a_deck_short_of_two_pillars_comes_down_onto_both(monkeypatch):
 
 def test_extensions_of_two_search_groups_never_enter_each_other():
     from pipeline.contacts import find_contacts
+    from pipeline.extend import apart
     from pipeline.model import Arrangement, box, ground
-    from pipeline.search import _apart
 
     fitted = Arrangement((box("a", (0.0, 0.0, 0.5), (0.2, 0.2, 0.2)),
                           box("b", (0.6, 0.0, 0.5), (0.2, 0.2, 0.2))), (ground(),))
     # group 1 grew a sideways by 0.5 m, 0.1 m into b; b is unchanged
     grown = fitted.with_(cuboids=(box("a", (0.25, 0.0, 0.5), (0.7, 0.2, 0.2)),
                                   fitted.cuboids[1]))
-    out = _apart(fitted, grown)
+    out = apart(fitted, grown)
     assert not find_contacts(out).penetrations
     a = out.cuboids[0]
     # a gave way, only as far as its extension: it still holds its fitted box and now
@@ -728,5 +728,5 @@ def test_extensions_of_two_search_groups_never_enter_each_other():
     # box: both go back to their fitted boxes
     both = fitted.with_(cuboids=(box("a", (0.3, 0.0, 0.5), (0.8, 0.2, 0.2)),
                                  box("b", (0.3, 0.0, 0.5), (0.8, 0.2, 0.2))))
-    out = _apart(fitted, both)
+    out = apart(fitted, both)
     assert [c.size[0] for c in out.cuboids] == [0.2, 0.2]
