@@ -314,6 +314,22 @@ def _collect(fut: cf.Future, task: Task, out: Path, prints: dict[str, str],
     bar.update(note=task.id)
 
 
+def failure_line(summaries: Iterable[RunSummary]) -> str | None:
+    """One line for the runs' failed tasks (how many, and the first error), or None.
+
+    A suite, dataset or bulk run with a failed task prints this on stderr and exits 1: a
+    table of the tasks that did succeed must not pass for the whole answer.
+    """
+    summaries = list(summaries)
+    failed = [r for s in summaries for r in s.records if not r.ok]
+    if not failed:
+        return None
+    total = sum(len(s.records) for s in summaries)
+    first = failed[0]
+    return (f"{len(failed)} of {total} tasks failed; first: {first.id}: {first.error} "
+            f"(its traceback is in tasks/{first.id}.json)")
+
+
 def load_records(out: str | Path) -> dict[str, dict]:
     """Every task record under ``out/tasks`` (id -> the JSON object), sorted by id."""
     folder = Path(out) / "tasks"

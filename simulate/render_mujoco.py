@@ -14,8 +14,8 @@ Depth is the camera-frame ``z`` (not the ray length), recovered from the reverse
 float32 depth buffer in float64: equal to analytic ray casting within 2 micrometres
 (median) and 0.1 mm (worst pixel) at 1-8 m.
 
-Headless: ``MUJOCO_GL=egl`` (the default set here when unset), ``osmesa`` when no EGL
-library is found (or when the caller sets it).
+Headless: ``MUJOCO_GL=egl`` (the default :func:`simulate.headless_gl` sets when unset),
+``osmesa`` when no EGL library is found (or when the caller sets it).
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ import numpy as np
 
 from pipeline.camera import Intrinsics
 from pipeline.model import Arrangement
+
+from . import headless_gl
 
 #: Near and far clipping planes, metres (the model's ``statistic extent`` is pinned to 1).
 ZNEAR = 0.02
@@ -147,19 +149,6 @@ def _pool_mjcf(capacity: int, width: int, height: int) -> str:
 """
 
 
-def _choose_gl_backend() -> None:
-    """Default ``MUJOCO_GL`` to EGL, or to OSMesa when no EGL library can be found."""
-    if "MUJOCO_GL" in os.environ:
-        return
-    import ctypes.util
-
-    if ctypes.util.find_library("EGL") is None and ctypes.util.find_library("OSMesa"):
-        os.environ["MUJOCO_GL"] = "osmesa"
-        os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
-    else:
-        os.environ["MUJOCO_GL"] = "egl"
-
-
 def _check_headless_backend() -> None:
     """Fail clearly when MuJoCo picked GLFW (needs an X display) and there is none.
 
@@ -185,7 +174,7 @@ class _Pool:
     """
 
     def __init__(self, capacity: int, width: int, height: int) -> None:
-        _choose_gl_backend()
+        headless_gl()
         import mujoco
 
         _check_headless_backend()

@@ -17,8 +17,9 @@ under --out, one JSON record per scene under --out/tasks (a rerun resumes from t
 and command.json with the exact command, package versions and seed.
 --workers N runs scenes on N local processes (one thread each: OMP_NUM_THREADS and the
 BLAS thread counts default to 1), --dask tcp://HOST:PORT on a running Dask cluster; the
-numbers do not depend on either.  Exit 0, 1 when the suite's answer is
-"no" (the regression suite got worse), 2 on bad input.
+numbers do not depend on either.  Exit 0; 1 when the suite's answer is
+"no" (the regression suite got worse) or when any task failed (the line says how many
+and gives the first error; tracebacks are in --out/tasks); 2 on bad input.
 The held-out pool (single views of all ten families from seeds nobody developed on):
   unseen eval pool --out results/pool --first-seed 100000 --n 20 --workers 2"""
 
@@ -177,8 +178,9 @@ def run(args: argparse.Namespace) -> int:
     previous = record_path.read_bytes() if record_path.is_file() else None
     atomic.write_text(record_path, json.dumps(record, indent=1) + "\n")
     module = importlib.import_module(f"eval.suites.{args.suite}")
+    args.task_summaries = []
     try:
-        return int(module.run(args) or 0)
+        rc = int(module.run(args) or 0)
     except InputError:
         # the suite refused its input: leave --out as it was
         if previous is None:
@@ -188,6 +190,13 @@ def run(args: argparse.Namespace) -> int:
         if created and not any(args.out.iterdir()):
             args.out.rmdir()
         raise
+    from eval.runner import failure_line
+
+    line = failure_line(args.task_summaries)
+    if line is not None:
+        print(f"unseen eval {args.suite}: {line}", file=sys.stderr)
+        rc = max(rc, 1)
+    return rc
 
 
 #: Seconds to wait for a Dask scheduler to answer before giving up.

@@ -55,11 +55,17 @@ def run_suite_tasks(args: argparse.Namespace, tasks: Iterable, label: str):
     """Run a suite's tasks with the scale-out options of ``unseen eval``.
 
     Returns the :class:`eval.runner.RunSummary`; records are under ``args.out/tasks``.
+    The summary is also appended to ``args.task_summaries``, from which ``unseen eval``
+    exits 1 when any task failed (:func:`eval.runner.failure_line`).
     """
     from eval.runner import run_tasks
 
-    return run_tasks(tasks, args.out, seed=args.seed, workers=getattr(args, "workers", 1),
-                     dask=getattr(args, "dask", None), label=label)
+    summary = run_tasks(tasks, args.out, seed=args.seed, workers=getattr(args, "workers", 1),
+                        dask=getattr(args, "dask", None), label=label)
+    if not isinstance(getattr(args, "task_summaries", None), list):
+        args.task_summaries = []
+    args.task_summaries.append(summary)
+    return summary
 
 
 def score_record(pred, gt, initial=None, graph: str = "union",  # noqa: ANN001
