@@ -31,6 +31,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
              "unseen eval table1 --out results/table1 --workers 2"),
     "bench": ("eval.commands.bench", "performance benchmarks, printed as a table",
               "unseen bench --out bench_out"),
+    "dataset": ("eval.commands.dataset", "make a benchmark dataset: many scenes, splits, manifest",
+                "unseen dataset make --out data --families all --n 200 --workers 2"),
 }
 
 

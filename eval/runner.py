@@ -62,12 +62,21 @@ class Task:
         A rough relative running time.  Parallel runs start the costliest tasks first
         (longest processing time first: a long task started last keeps one worker busy
         while the others idle); results, records and their order do not depend on it.
+    where : mapping
+        Keyword arguments that say where the task works, not what it computes (an
+        output folder): passed to ``fn`` but not part of :func:`fingerprint`, so a
+        folder moved elsewhere still resumes.
     """
 
     id: str
     fn: Callable[..., Mapping[str, Any]]
     kwargs: Mapping[str, Any] = field(default_factory=dict)
     cost: float = 1.0
+    where: Mapping[str, Any] = field(default_factory=dict)
+
+    def arguments(self) -> dict:
+        """Everything ``fn`` is called with besides ``rng``."""
+        return {**self.kwargs, **self.where}
 
 
 @dataclass(frozen=True)
@@ -271,11 +280,11 @@ def run_tasks(tasks: Iterable[Task], out: str | Path, *, seed: int = 0, workers:
             if isinstance(executor, _InlineExecutor):
                 # submit lazily so the bar moves and an interrupt keeps what is written
                 for t in pending:
-                    _collect(executor.submit(execute, t.fn, dict(t.kwargs), t.id, seed),
+                    _collect(executor.submit(execute, t.fn, t.arguments(), t.id, seed),
                              t, out, prints, records, bar)
             else:
                 order = sorted(pending, key=lambda t: -t.cost)  # stable: ties in task order
-                futures = {executor.submit(execute, t.fn, dict(t.kwargs), t.id, seed): t
+                futures = {executor.submit(execute, t.fn, t.arguments(), t.id, seed): t
                            for t in order}
                 for fut in cf.as_completed(futures):
                     _collect(fut, futures[fut], out, prints, records, bar)

@@ -153,10 +153,27 @@ def scene_rngs(seed: int) -> tuple[np.random.Generator, np.random.Generator]:
     return np.random.default_rng(scene), np.random.default_rng(scan)
 
 
+def scaled(arr: Arrangement, factor: float) -> Arrangement:
+    """The arrangement scaled about the world origin by ``factor`` (> 0).
+
+    Every length grows by ``factor``: box centres and sizes, support points.  Rotations,
+    contacts and density stay; a scaled scene is geometrically similar, so its contacts
+    still touch and nothing new interpenetrates (it is validated again all the same).
+    """
+    if factor == 1.0:
+        return arr
+    cubs = tuple(c.with_(center=c.center * factor, size=c.size * factor,
+                         observed=None if c.observed is None else
+                         type(c.observed)(c.observed.center * factor, c.observed.size * factor))
+                 for c in arr.cuboids)
+    sups = tuple(type(s)(s.id, s.point * factor, s.normal) for s in arr.supports)
+    return arr.with_(cuboids=cubs, supports=sups)
+
+
 def sample_scene(family: str, rng: np.random.Generator, *, seed: int | None = None,
                  engines: tuple[str, ...] = TRUTH_ENGINES, analytic: bool = True,
                  max_attempts: int = MAX_ATTEMPTS, mu: float = DEFAULT_MU,
-                 **options) -> GroundTruth:
+                 scale: float = 1.0, **options) -> GroundTruth:
     """Sample ``family`` from ``rng`` until a scene passes :func:`validate`.
 
     Parameters
@@ -168,6 +185,9 @@ def sample_scene(family: str, rng: np.random.Generator, *, seed: int | None = No
         Recorded in the scene's meta.
     engines, analytic, mu
         What :func:`validate` runs.
+    scale : float
+        Every sample is :func:`scaled` by this factor before it is validated (recorded in
+        ``meta.scale`` when not 1).
     **options
         Family options (``n_boxes``, ``n_objects``, ...); None values are ignored.
 
@@ -184,7 +204,7 @@ def sample_scene(family: str, rng: np.random.Generator, *, seed: int | None = No
     arr = None
     val = None
     for attempt in range(1, max_attempts + 1):
-        arr = make(family, rng, **opts)
+        arr = scaled(make(family, rng, **opts), scale)
         val = validate(arr, engines, analytic, mu)
         if val.stable:
             break
@@ -194,6 +214,8 @@ def sample_scene(family: str, rng: np.random.Generator, *, seed: int | None = No
     status = "ok" if val.stable else "gave_up"
     meta = {**arr.meta, "family": family, "seed": seed, "options": opts, "attempts": attempt,
             "validation": val.verdicts(), "status": status}
+    if scale != 1.0:
+        meta["scale"] = float(scale)
     return GroundTruth(arr.with_(meta=meta), family, opts, attempt, val, status,
                        time.perf_counter() - t0, tuple(rejected))
 

@@ -149,3 +149,21 @@ def test_suite_on_separate_scheduler_and_workers_matches_serial(tmp_path, cluste
         assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()
     timing = json.loads((tmp_path / "dask" / "timing.json").read_text())
     assert timing["backend"] == f"dask {cluster}" and timing["n_failed"] == 0
+
+
+@pytest.mark.slow
+def test_dataset_on_separate_scheduler_and_workers_matches_serial(tmp_path, cluster):
+    from synth_scenes.dataset import file_hashes
+
+    argv = ["dataset", "make", "--families", "stack,table,chair,shelf", "--n", "4",
+            "--views", "1-2", "--first-seed", "21"]
+    serial = _unseen(*argv, "--out", str(tmp_path / "serial"))
+    assert serial.returncode == 0, serial.stderr[-2000:]
+    remote = _unseen(*argv, "--out", str(tmp_path / "dask"), "--dask", cluster)
+    assert remote.returncode == 0, remote.stderr[-2000:]
+    assert f"on dask {cluster}" in remote.stdout
+    for name in ("manifest.jsonl", "dataset.json", "stats.png"):
+        assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()
+    a, b = file_hashes(tmp_path / "serial"), file_hashes(tmp_path / "dask")
+    assert {k: v for k, v in a.items() if not k.startswith((".run/", "DATASET"))} == \
+        {k: v for k, v in b.items() if not k.startswith((".run/", "DATASET"))}
