@@ -33,6 +33,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
               "unseen bench --out bench_out"),
     "dataset": ("eval.commands.dataset", "make a benchmark dataset: many scenes, splits, manifest",
                 "unseen dataset make --out data --families all --n 200 --workers 2"),
+    "import": ("eval.commands.import_", "an MJCF or URDF of boxes -> arrangement.json",
+               "unseen import scene.xml --out arrangement.json"),
 }
 
 
