@@ -14,9 +14,14 @@ MuJoCo and PyBullet (:func:`simulate.engines.settle`).  Outputs under ``--out``:
     One row per arrangement: kind, margin, energy, the three verdicts, in the band or not.
 ``agreement.png``
     Agreement outside the band, per family and engine pair.
+``arrangements/<task>.json``
+    Every arrangement of the study as an ``arrangement.json`` whose ``meta`` holds the
+    suite's ``verdicts``, ``energy`` and ``near_threshold``: ``unseen check
+    OUT/arrangements --engine all --junit report.xml`` checks them all again (a few KB
+    each, about 1 MB for 500).
 ``disagreements/<task>.json``
-    Every arrangement on which any two verdicts differ, as an ``arrangement.json`` (its
-    ``meta`` holds the verdicts), ready for ``unseen check --engine all``.
+    The same file for every arrangement on which any two verdicts differ, ready for
+    ``unseen check OUT/disagreements --engine all``.
 
 The band: an arrangement is *near the threshold* when its closed-form tipping angle
 (``meta["margin"]``, signed, radians: how far the part that can tip must turn before it
@@ -70,9 +75,30 @@ def agreement_task(rng: np.random.Generator, index: int) -> dict:
                        "max_translation": max(b.translation for b in r.bodies),
                        "max_rotation_deg": max(b.rotation_deg for b in r.bodies)}
     rec["near"] = near_threshold(rec)
-    if len({rec[v]["stable"] for v in VERDICTS}) > 1:
-        rec["arrangement"] = arrangement_to_dict(arr)
+    rec["arrangement"] = arrangement_to_dict(arr)  # every case is saved (arrangements/)
     return rec
+
+
+def _redraw(seed: int, task_id: str) -> dict:
+    """The arrangement of a task whose record predates saving it: the same draw again
+    (:func:`agreement_task` draws it first from the task's generator)."""
+    from eval.runner import task_rng
+    from pipeline.arrangement_io import arrangement_to_dict
+    from synth_scenes.random_arrangements import random_arrangement
+
+    return arrangement_to_dict(random_arrangement(task_rng(seed, task_id)))
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    """Write atomically unless the file already holds ``text`` (a resumed run)."""
+    from pipeline import atomic
+
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return
+    except (OSError, ValueError):
+        pass
+    atomic.write_text(path, text)
 
 
 def near_threshold(rec: dict) -> bool:
@@ -174,15 +200,17 @@ def run(args: argparse.Namespace) -> int:
     results = summary.results
     records = [results[t.id] | {"id": t.id} for t in tasks if t.id in results]
 
-    # every disagreement as an arrangement.json
+    # every case as an arrangement.json (meta: the verdicts), disagreements also apart
     for r in records:
-        if "arrangement" in r:
-            data = dict(r["arrangement"])
-            data["meta"] = {**data.get("meta", {}),
-                            "verdicts": {v: r[v]["stable"] for v in VERDICTS},
-                            "energy": r["analytic"]["energy"], "near_threshold": r["near"]}
-            atomic.write_text(out / "disagreements" / f"{r['id']}.json",
-                              json.dumps(data, indent=1) + "\n")
+        data = dict(r.get("arrangement") or _redraw(args.seed, r["id"]))
+        data["meta"] = {**data.get("meta", {}),
+                        "verdicts": {v: r[v]["stable"] for v in VERDICTS},
+                        "energy": r["analytic"]["energy"], "near_threshold": r["near"]}
+        text = json.dumps(data, indent=1) + "\n"
+        folders = ["arrangements"] + (["disagreements"]
+                                      if len({r[v]["stable"] for v in VERDICTS}) > 1 else [])
+        for folder in folders:
+            _write_if_changed(out / folder / f"{r['id']}.json", text)
 
     s = summarize(records)
     rows = []
