@@ -238,6 +238,8 @@ PATCH_MIN_SHARE = 0.005
 PATCH_DIST = 1.5
 #: RANSAC looks for each plane among at most this many of the cluster's points.
 PATCH_SAMPLE = 20000
+#: Plane hypotheses (point triples) per RANSAC round of the face patches.
+PATCH_HYPOTHESES = 300
 #: Two patches whose pixels come this close (pixels) are neighbours: a Kinect frame
 #: smears a crease over a few pixels that fit neither plane (4 and 7 were tried on the
 #: real scans: 7 joined more of the pieces of one object, rooms 66.7 -> 71.3).
@@ -254,28 +256,36 @@ SPLIT_MIN_SHARE = 0.01
 
 def _patches(points: np.ndarray, pix: np.ndarray, shape: tuple[int, int], dist: float,
              min_points: int, seed: int = 0) -> np.ndarray:
-    """Per point the index of its planar patch (-1 none): RANSAC planes (Open3D, on at
-    most :data:`PATCH_SAMPLE` points; every point within ``dist`` of a plane is its),
-    each cut into the pieces that are connected in the image."""
+    """Per point the index of its planar patch (-1 none): RANSAC planes (on at most
+    :data:`PATCH_SAMPLE` points, refitted by least squares to their inliers; every point
+    within ``dist`` of a plane is its), each cut into the pieces that are connected in
+    the image.
+
+    The RANSAC is :func:`pipeline.planes.ransac_plane`, seeded, rather than Open3D's
+    ``segment_plane``: that one draws its samples on all OpenMP threads from one
+    generator, so with more than one thread the same frame gave different objects from
+    run to run (Shao's 3 boxes: 2 or 3 objects).
+    """
     import cv2
-    import open3d as o3d
+
+    from .planes import fit_plane_lsq, ransac_plane
 
     out = np.full(len(points), -1, np.int64)
     left = np.arange(len(points))
     rng = np.random.default_rng(seed)
-    o3d.utility.random.seed(seed)
     n_patch = 0
     for _ in range(PATCH_MAX_PLANES):
         if len(left) < max(min_points, 3):
             break
         sample = left if len(left) <= PATCH_SAMPLE else np.sort(
             rng.choice(left, PATCH_SAMPLE, replace=False))
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points[sample]))
-        plane, inl = pc.segment_plane(distance_threshold=dist, ransac_n=3, num_iterations=200)
-        if len(inl) * len(left) < min_points * len(sample):
+        sub = points[sample]
+        nrm, off, cnt = ransac_plane(sub, dist, rng, hypotheses=PATCH_HYPOTHESES)
+        if cnt * len(left) < min_points * len(sample):
             break
-        a, b, c, d = plane
-        idx = left[np.abs(points[left] @ np.array([a, b, c]) + d) < dist]
+        if cnt >= 3:
+            nrm, off = fit_plane_lsq(sub[np.abs(sub @ nrm + off) < dist])
+        idx = left[np.abs(points[left] @ nrm + off) < dist]
         mask = np.zeros(shape, np.uint8)
         mask[pix[idx, 0], pix[idx, 1]] = 1
         mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
