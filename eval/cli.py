@@ -35,6 +35,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                 "unseen dataset make --out data --families all --n 200 --workers 2"),
     "import": ("eval.commands.import_", "an MJCF or URDF of boxes -> arrangement.json",
                "unseen import scene.xml --out arrangement.json"),
+    "regress": ("eval.commands.regress", "record the results of your own scans, verify them later",
+                "unseen regress verify my_scans --junit regress.xml"),
 }
 
 

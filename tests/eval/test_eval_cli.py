@@ -111,18 +111,19 @@ def test_eval_regression_update_through_the_cli(tmp_path, capsys):
     out = tmp_path / "r"
     assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
                  "--expected", str(exp), "--update"]) == 0
-    stored = json.loads(exp.read_text())["cases"]
-    assert set(stored) == {"stack-1000"}
+    data = json.loads(exp.read_text())
+    assert set(data["scans"]) == {"stack-1000"}
     cmd = json.loads((out / "command.json").read_text())["command"]
     assert cmd.endswith(f"--only stack-1000 --expected {exp} --update")
     # checked against what it just wrote: no regression; a flipped figure: exit 1
     assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
                  "--expected", str(exp)]) == 0
-    stored["stack-1000"]["stands"] = 2
-    exp.write_text(json.dumps({"cases": stored}))
+    data["scans"]["stack-1000"]["fixed"] = -1
+    exp.write_text(json.dumps(data))
     assert main(["eval", "regression", "--out", str(out), "--only", "stack-1000",
                  "--expected", str(exp)]) == 1
-    assert "REGRESSED" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "REGRESSED:\n- stack-1000: fixed 0 > -1 + 0" in captured.out
 
 
 def test_workers_and_dask_are_exclusive(tmp_path):
