@@ -73,6 +73,16 @@ _PERMS = np.array(list(itertools.permutations(range(3))), dtype=np.intp)  # (6, 
 
 
 # ============================================================================ IoU
+def _nearest_rotations(R: np.ndarray) -> np.ndarray:
+    """The rotations nearest ``R (M, 3, 3)`` (polar factor by SVD).
+
+    The reader admits rotations orthonormal to ``ROTATION_TOL`` (1e-6).  The edge
+    clipping below is exact only for exact rotations: a box whose rotation was off by
+    1e-8 had IoU 0 with itself (each of its edges lies in two faces of the other box and
+    fell just outside them).
+    """
+    u, _, vt = np.linalg.svd(R)
+    return u @ vt
 def _clip_edges(corners: np.ndarray, centers: np.ndarray, rotations: np.ndarray,
                 half: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Clip the 12 edges of boxes A against boxes B (Liang-Barsky, all pairs at once).
@@ -142,6 +152,7 @@ def intersection_volumes(centers_a: np.ndarray, rotations_a: np.ndarray, sizes_a
     out = np.zeros(m)
     if m == 0:
         return out
+    ra, rb = _nearest_rotations(ra), _nearest_rotations(rb)
     pa, va = _clip_edges(box_corners(ca, ra, sa), cb, rb, sb / 2.0)
     pb, vb = _clip_edges(box_corners(cb, rb, sb), ca, ra, sa / 2.0)
     pts = np.concatenate([pa, pb], axis=1)  # (M, 48, 3)

@@ -456,3 +456,26 @@ def test_initial_graph_counts_pairs_within_two_centimetres(gap, expected):
     assert (("c", "ground", "touch") in edges) is expected
     assert ("a", "ground", "touch") in edges  # resting exactly
     assert not any("c" in e[:2] and "a" in e[:2] for e in edges)
+
+
+def test_iou_of_a_box_with_itself_is_one_for_rotations_the_reader_admits():
+    """A rotation written with a few decimals (orthonormal to 1e-6, as arrangement_io
+    accepts) used to give IoU 0 of a box with itself: its edges lie in the other's faces."""
+    from scipy.spatial.transform import Rotation
+
+    from eval.metrics import pairwise_iou
+    from pipeline.constants import ROTATION_TOL
+
+    c, s = np.array([[0.1, -0.2, 0.5]]), np.array([[0.4, 0.3, 0.2]])
+    checked = 0
+    for k in range(50):
+        for decimals in (7, 8, 10):
+            R = np.round(Rotation.random(random_state=k).as_matrix(), decimals)
+            if np.abs(R.T @ R - np.eye(3)).max() > ROTATION_TOL:
+                continue
+            checked += 1
+            assert pairwise_iou(c, R[None], s, c, R[None], s)[0, 0] == pytest.approx(1.0, abs=1e-9)
+            moved = c + np.array([[0.2, 0.0, 0.0]]) @ R.T  # half a box along its own x
+            assert pairwise_iou(c, R[None], s, moved, R[None], s)[0, 0] == \
+                pytest.approx(1 / 3, abs=1e-6)
+    assert checked > 100
