@@ -37,6 +37,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                "unseen import scene.xml --out arrangement.json"),
     "regress": ("eval.commands.regress", "record the results of your own scans, verify them later",
                 "unseen regress verify my_scans --junit regress.xml"),
+    "edit": ("eval.commands.edit", "move or remove an object in the original colour image",
+             "unseen edit scan result --move table0 0.3 0 --out edited"),
 }
 
 
