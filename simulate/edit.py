@@ -1,21 +1,10 @@
-"""Image edits in the original view: move or remove an object of a stable arrangement.
+"""Image edits in the original view: the colour image after a planned move or removal.
 
 Section 6 (iii) of the paper: the colour image of a single-view scan is edited with the
 structure the method recovered (ground, walls, the stable cuboid arrangement).
 
-1. **Plan** (:func:`plan_edit`).  An object moves with everything it *carries*: the
-   objects resting on it (a contact whose normal, pointing from the lower object into
-   the upper one, is within 45 degrees of up), transitively, and those ``fixed`` to it.
-   An object merely *leaning* on it (a side contact) is not carried: it stays, and the
-   stability check decides whether it still stands.  A ``fixed`` contact of a moved
-   object with the ground (or a wall it slides along) stays fixed: whatever hidden cause
-   the search glued it for travels with the object.  The move is a translation along the
-   floor.  It is refused, with a one-line reason, when the moved group would enter
-   another box or a wall beyond the contact tolerance, when nothing is under it at its
-   new place, when a carried object also rests on something that stays, or when any
-   body that stood before no longer stands (analytic statics,
-   :func:`pipeline.stability.check_stability`).  A removed object takes what it carries
-   with it, under the same checks.
+1. **Plan** (:func:`simulate.edit_plan.plan_edit`): what moves with what, and whether
+   the edit is allowed.
 2. **Background** (:func:`edit_image`).  The pixels whose back-projected depth point lies
    inside one of the moving or removed cuboids grown by ``margin``, plus the pixels of
    their silhouette without a depth reading, dilated by a few pixels, are deleted.  The
@@ -37,26 +26,26 @@ structure the method recovered (ground, walls, the stable cuboid arrangement).
    ``shadow_soft`` metres.
 5. **Composite**: background, shadow, then the foreground by its coverage.
 
-Frames: the arrangement's world (z up) maps onto the input's camera frame by
-``meta.camera_pose`` after the input's scale (``p_world = T @ (input_scale * p_input)``);
-pixels are OpenCV's (:mod:`pipeline.camera`).
+Frames: those of :mod:`simulate.view` (the arrangement's world, z up; OpenCV pixels).
+Ray casting is :mod:`simulate.raycast`; the pixel filling algorithms are
+:mod:`simulate.inpaint`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from pipeline.camera import Intrinsics, project
 from pipeline.errors import InputError
-from pipeline.model import Arrangement, Contact, Cuboid, is_support_id
+from pipeline.model import Arrangement, Cuboid
 
-#: Cosine of the largest angle from up of a contact normal that makes one object rest on
-#: another (45 degrees): a box on a table top carries, a box against its side does not.
-CARRY_MIN_NZ = float(np.cos(np.radians(45.0)))
-#: Pixels cast per chunk in the ray caster (memory: chunk x boxes x 3 floats, several times).
-RAY_CHUNK = 1 << 15
+from .edit_plan import EditPlan, object_names, object_of
+from .inpaint import pull_push, shift_fill
+from .raycast import box_arrays, cast_boxes, cast_scene, inside_boxes, pixel_rays, silhouette
+from .view import View
+
 #: Known pixels of a surface needed before the hole is filled from them alone.
 MIN_SURFACE_PIXELS = 20
 
@@ -79,7 +68,7 @@ class EditParams:
         Pixels, OpenCV's inpainting neighbourhood.
     texture : bool
         With ``fill="surface"``: copy texture from a shifted part of the same surface
-        (:func:`shift_fill`) over the smooth fill.
+        (:func:`simulate.inpaint.shift_fill`) over the smooth fill.
     shadow : bool
     light : (3,) float
         Direction the light travels (down), world frame.
@@ -122,584 +111,14 @@ class EditParams:
 FILLS = ("surface", "telea", "ns")
 
 
-# ------------------------------------------------------------------------------ planning
-@dataclass(frozen=True)
-class Operation:
-    """One edit: ``move`` an object by (dx, dy) metres along the floor, or ``remove`` it."""
-
-    kind: str
-    object: str
-    dx: float = 0.0
-    dy: float = 0.0
-
-    def describe(self) -> str:
-        if self.kind == "remove":
-            return f"remove {self.object}"
-        return f"move {self.object} by ({self.dx:+.3f}, {self.dy:+.3f}) m"
-
-
-@dataclass(frozen=True)
-class GroupEdit:
-    """What one operation did: the object, what it carried, the cuboids and the offset."""
-
-    operation: Operation
-    objects: tuple[str, ...]  #: the object first, then what it carries
-    cuboids: tuple[str, ...]
-    offset: np.ndarray  #: (3,) metres (zero for a removal)
-
-
-@dataclass(frozen=True)
-class EditPlan:
-    """The outcome of :func:`plan_edit`: the edited arrangement, or why it was refused.
-
-    ``moved`` maps each moved cuboid id to its (3,) offset; ``removed`` lists removed ids.
-    ``refusal`` is None when every operation is legal; ``checks`` lists what was checked.
-    """
-
-    before: Arrangement
-    after: Arrangement
-    groups: tuple[GroupEdit, ...]
-    refusal: str | None = None
-    checks: tuple[str, ...] = ()
-    moved: dict = field(default_factory=dict)
-    removed: tuple[str, ...] = ()
-
-    @property
-    def ok(self) -> bool:
-        return self.refusal is None
-
-    @property
-    def gone(self) -> tuple[str, ...]:
-        """Cuboid ids whose old pixels are deleted (moved or removed)."""
-        return tuple(self.moved) + tuple(self.removed)
-
-
-def object_of(c: Cuboid) -> str:
-    """The object a cuboid belongs to (its own id when it names none)."""
-    return c.object if c.object else c.id
-
-
-def object_names(arr: Arrangement) -> list[str]:
-    """Object names in the order of their first cuboid."""
-    return list(dict.fromkeys(object_of(c) for c in arr.cuboids))
-
-
-def support_graph(arr: Arrangement, contacts=None, min_nz: float = CARRY_MIN_NZ
-                  ) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
-    """Who rests on whom, and who is fixed to whom, between objects.
-
-    Parameters
-    ----------
-    arr : Arrangement
-    contacts : ContactSet, optional
-        Its contacts (found from the geometry when omitted).
-    min_nz : float
-        An object rests on another when a contact normal from the other into it has
-        ``n_z >= min_nz``.
-
-    Returns
-    -------
-    under : {object: set of objects or support ids it rests on}
-    fixed : {object: set of objects or support ids it is ``fixed`` to}
-    """
-    from pipeline.contacts import find_contacts
-
-    cs = find_contacts(arr) if contacts is None else contacts
-    K = len(arr.cuboids)
-    obj = [object_of(c) for c in arr.cuboids]
-    node = obj + list(cs.names[K:])
-    under: dict[str, set[str]] = {o: set() for o in obj}
-    fixed: dict[str, set[str]] = {o: set() for o in obj}
-    nz = cs.normal[:, 2] if cs.count else np.zeros(0)
-    for m, (a, b) in enumerate(zip(cs.a.tolist(), cs.b.tolist())):
-        if node[a] == node[b]:
-            continue
-        if nz[m] >= min_nz:           # the normal points from b into a: a rests on b
-            under[node[a]].add(node[b])
-        elif nz[m] <= -min_nz and b < K:
-            under[node[b]].add(node[a])
-    idx = arr.index
-    for c in arr.contacts:
-        if c.type != "fixed":
-            continue
-        na = obj[idx[c.a]] if c.a in idx else c.a
-        nb = obj[idx[c.b]] if c.b in idx else c.b
-        if na != nb:
-            for x, y in ((na, nb), (nb, na)):
-                if x in fixed:
-                    fixed[x].add(y)
-    return under, fixed
-
-
-def carried_set(arr: Arrangement, name: str, contacts=None) -> tuple[list[str], str | None]:
-    """The object ``name`` and everything it carries, transitively.
-
-    Carried: an object resting on a carried one (:func:`support_graph`), or ``fixed`` to
-    one (a fused contact makes one rigid body).  Glue to the ground or a wall does not
-    carry (it stays only while the object still touches that support).
-
-    Returns
-    -------
-    objects : list of str
-        ``name`` first, then the carried objects in order of discovery.
-    conflict : str or None
-        Why the group cannot move alone: a carried object that also rests on something
-        that stays.
-    """
-    under, fixed = support_graph(arr, contacts)
-    group, todo = [name], [name]
-    while todo:
-        cur = todo.pop(0)
-        for o in under:
-            if o in group:
-                continue
-            if cur in under[o] or cur in fixed[o]:
-                group.append(o)
-                todo.append(o)
-    members = set(group)
-    for o in group[1:]:
-        others = sorted(x for x in under[o] if x not in members)
-        if others:
-            return group, (f"{o} rests on {', '.join(sorted(under[o] & members))} and on "
-                           f"{', '.join(others)}: it cannot go with {name} alone")
-    return group, None
-
-
-def _kept_contacts(arr: Arrangement, ids: set[str], moved: set[str],
-                   touching: set | None = None) -> tuple[Contact, ...]:
-    """The listed ``fixed`` contacts that survive: both ends kept, and both moved or both
-    staying; a moved cuboid's glue to the ground or a wall survives when the pair still
-    touches after the move (``touching``: sorted id pairs that do).  Touch contacts are
-    found again from the geometry."""
-    out = []
-    for c in arr.contacts:
-        if c.type != "fixed":
-            continue
-        ends = [x for x in (c.a, c.b) if not is_support_id(x)]
-        if any(x not in ids for x in ends):
-            continue
-        if (c.a in moved) == (c.b in moved) or (
-                touching is not None and len(ends) == 1 and c.key in touching):
-            out.append(c)
-    return tuple(out)
-
-
-def _with_touches(arr: Arrangement) -> Arrangement:
-    """``arr`` with its listed contacts: the fixed ones kept, every touching pair as touch."""
-    from pipeline.contacts import find_contacts
-
-    cs = find_contacts(arr)
-    fixed = {c.key for c in arr.contacts}
-    touches = [Contact(a, b, "touch") for a, b in cs.pairs
-               if ((a, b) if a <= b else (b, a)) not in fixed]
-    return arr.with_(contacts=tuple(arr.contacts) + tuple(touches))
-
-
-def _cm(x: float) -> str:
-    return f"{100 * x:.1f} cm"
-
-
-def plan_edit(arr: Arrangement, operations: list[Operation] | tuple[Operation, ...],
-              mu: float | None = None, contacts=None, stability=None) -> EditPlan:
-    """Apply ``operations`` in order to ``arr`` if each is legal (see the module docstring).
-
-    Parameters
-    ----------
-    arr : Arrangement
-        The scan's result (world frame z up, supports ``ground`` / ``wall:k``).
-    operations : sequence of Operation
-    mu : float, optional
-        Friction for the stability check (default ``arr.meta["mu"]`` or 0.7).
-    contacts, stability : optional
-        ``find_contacts(arr)`` and ``check_stability(arr, mu)`` when the caller has them
-        (many plans on one arrangement).
-
-    Returns
-    -------
-    EditPlan
-        ``refusal`` says, in one line, why the first illegal operation is refused.
-    """
-    from pipeline.contacts import find_contacts
-    from pipeline.stability import check_stability
-
-    mu = float(arr.meta.get("mu", 0.7)) if mu is None else float(mu)
-    cur = arr
-    groups: list[GroupEdit] = []
-    checks: list[str] = []
-    offsets: dict[str, np.ndarray] = {}
-    removed: list[str] = []
-    first = {c.id: c for c in arr.cuboids}
-    cs = find_contacts(cur) if contacts is None else contacts
-    stab = check_stability(cur, mu=mu, contacts=cs) if stability is None else stability
-
-    def refuse(msg: str) -> EditPlan:
-        return EditPlan(arr, cur, tuple(groups), msg, tuple(checks), offsets, tuple(removed))
-
-    for op in operations:
-        names = object_names(cur)
-        if op.object not in names:
-            gone = f" ({op.object} was removed or moved with another object)" \
-                if op.object in object_names(arr) else ""
-            return refuse(f"unknown object {op.object!r}{gone}; objects: {', '.join(names)}")
-        group, conflict = carried_set(cur, op.object, cs)
-        if conflict:
-            return refuse(f"cannot {op.describe()}: {conflict}")
-        members = set(group)
-        ids = [c.id for c in cur.cuboids if object_of(c) in members]
-        idset = set(ids)
-        carried = f" with {', '.join(group[1:])}" if len(group) > 1 else ""
-        if op.kind == "remove":
-            offset = np.zeros(3)
-            keep = [c for c in cur.cuboids if c.id not in idset]
-            after = cur.with_(cuboids=tuple(keep),
-                              contacts=_kept_contacts(cur, {c.id for c in keep}, set()))
-        elif op.kind == "move":
-            offset = np.array([op.dx, op.dy, 0.0], float)
-            if not np.all(np.isfinite(offset)) or np.abs(offset).max() > 1e3:
-                return refuse(f"cannot {op.describe()}: the offset must be finite metres")
-            new = [c.with_(center=c.center + offset) if c.id in idset else c
-                   for c in cur.cuboids]
-            after = cur.with_(cuboids=tuple(new),
-                              contacts=_kept_contacts(cur, set(cur.ids), idset))
-        else:
-            raise ValueError(f"operation kind must be 'move' or 'remove', got {op.kind!r}")
-        cs_after = find_contacts(after)
-        if op.kind == "move":  # glue to the floor (or a wall it slides along) goes with it
-            after = after.with_(contacts=_kept_contacts(cur, set(cur.ids), idset,
-                                                        set(cs_after.lookup())))
-        obj_of = {c.id: object_of(c) for c in cur.cuboids}
-        if op.kind == "move":
-            before_pen = {(a, b) if a <= b else (b, a) for a, b, _ in cs.penetrations}
-            new_pen = [(a, b, d) for a, b, d in cs_after.penetrations
-                       if ((a in idset) != (b in idset))
-                       and ((a, b) if a <= b else (b, a)) not in before_pen]
-            if new_pen:
-                a, b, d = max(new_pen, key=lambda p: p[2])
-                mover, other = (a, b) if a in idset else (b, a)
-                what = obj_of.get(other, other)
-                return refuse(f"cannot {op.describe()}: {obj_of[mover]} would enter {what} "
-                              f"by {_cm(d)}")
-            checks.append(f"{op.describe()}: enters nothing")
-            # something outside the group must hold it up at its new place
-            under_after, _ = support_graph(after, cs_after)
-            holders = set().union(*(under_after[o] for o in group)) - members
-            if not holders:
-                low = min(float(after.cuboid(i).corners()[:, 2].min()) for i in ids)
-                floor = next((float(s.point[2]) for s in after.supports if s.id == "ground"),
-                             None)
-                hang = f" (its bottom would hang {_cm(low - floor)} above the floor)" \
-                    if floor is not None else ""
-                return refuse(f"cannot {op.describe()}: nothing under {op.object} at its new "
-                              f"place{hang}")
-            checks.append(f"{op.describe()}: rests on {', '.join(sorted(holders))}")
-        stab_after = check_stability(after, mu=mu, contacts=cs_after)
-        was = {b.id: b.stable for b in stab.bodies}
-        falls = [b.id for b in stab_after.bodies if not b.stable and was.get(b.id, False)]
-        if falls:
-            fo = list(dict.fromkeys(obj_of.get(i, i) for i in falls))
-            moving = [o for o in fo if o in members]
-            if moving:
-                return refuse(f"cannot {op.describe()}: {', '.join(moving)} would not stand "
-                              "at its new place")
-            return refuse(f"cannot {op.describe()}: {', '.join(fo)} would no longer stand "
-                          f"once {op.object}{carried} {'is gone' if op.kind == 'remove' else 'moves'}")
-        checks.append(f"{op.describe()}: every body that stood still stands")
-        groups.append(GroupEdit(op, tuple(group), tuple(ids), offset))
-        if op.kind == "remove":
-            removed.extend(ids)  # deleted where they first were, moved before or not
-            for i in ids:
-                offsets.pop(i, None)
-        else:
-            for i in ids:
-                offsets[i] = after.cuboid(i).center - first[i].center
-        cur, cs, stab = after, cs_after, stab_after
-    cur = _with_touches(cur)
-    return EditPlan(arr, cur, tuple(groups), None, tuple(checks), offsets, tuple(removed))
-
-
-# ------------------------------------------------------------------------------ the view
-@dataclass(frozen=True)
-class View:
-    """The original camera view of a scan, metric, in the arrangement's world.
-
-    Attributes
-    ----------
-    image : (H, W, 3) uint8 RGB
-    depth : (H, W) float, metres along the optical axis, 0 = no reading
-    intrinsics : Intrinsics
-    T_world_cam : (4, 4) float, camera (metres) to the arrangement's world
-    """
-
-    image: np.ndarray
-    depth: np.ndarray
-    intrinsics: Intrinsics
-    T_world_cam: np.ndarray
-
-
-def view_of(scan, arr: Arrangement, where: str = "SCAN") -> View:
-    """The :class:`View` of a loaded scan (:func:`pipeline.run.load`) and its result.
-
-    Raises :class:`InputError` (one line) when the scan has no colour image, depth or
-    intrinsics, the result has no ``meta.camera_pose``, or their sizes disagree.
-    """
-    if getattr(scan, "views", ()):
-        raise InputError(f"{where}: a multi-view scan; edits are made in one RGB-D frame "
-                         "(give one view's folder, e.g. scan/view0, and its own run)")
-    if scan.image is None or scan.depth is None or scan.intrinsics is None:
-        raise InputError(f"{where}: no colour image with depth and intrinsics; edits are "
-                         "made in the original colour image of an RGB-D frame")
-    pose = arr.meta.get("camera_pose")
-    try:
-        T = np.asarray(pose, float)
-    except (TypeError, ValueError):
-        T = np.zeros(0)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError("RESULT: its arrangement has no meta.camera_pose (a 4x4 camera-to-"
-                         "world matrix); use the arrangement.json that 'unseen run' wrote")
-    if arr.meta.get("input_frame", "camera") != "camera":
-        raise InputError("RESULT: it was made from a point cloud without a camera; edits need "
-                         "the run of an RGB-D frame")
-    intr = scan.intrinsics
-    H, W = scan.depth.shape
-    if scan.image.shape[:2] != (H, W) or (intr.width, intr.height) != (W, H):
-        raise InputError(f"{where}: colour, depth and intrinsics disagree in size")
-    mi = arr.meta.get("intrinsics")
-    if isinstance(mi, dict) and (mi.get("width"), mi.get("height")) != (W, H):
-        raise InputError(f"RESULT: it was made from a {mi.get('width')}x{mi.get('height')} "
-                         f"frame but {where} is {W}x{H}; give the scan the result came from")
-    s = float(arr.meta.get("input_scale", 1.0))
-    depth = np.where(np.isfinite(scan.depth) & (scan.depth > 0), scan.depth * s, 0.0)
-    return View(np.ascontiguousarray(scan.image[:, :, :3]).astype(np.uint8), depth, intr, T)
-
-
-# --------------------------------------------------------------------------- ray casting
-def pixel_rays(view: View, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """World rays through pixel coordinates ``u, v (n,)``.
-
-    Returns
-    -------
-    origin : (3,) float, the camera centre
-    dirs : (n, 3) float, scaled so that the ray parameter is the camera-frame depth z
-    """
-    i = view.intrinsics
-    d = np.stack([(np.asarray(u, float) - i.cx) / i.fx, (np.asarray(v, float) - i.cy) / i.fy,
-                  np.ones(np.shape(u))], axis=-1)
-    R = view.T_world_cam[:3, :3]
-    return view.T_world_cam[:3, 3].copy(), d @ R.T
-
-
-def cast_boxes(origin: np.ndarray, dirs: np.ndarray, centers: np.ndarray,
-               rotations: np.ndarray, sizes: np.ndarray, grow: float = 0.0
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """First hit of rays with oriented boxes (slab test, vectorised over rays and boxes).
-
-    Parameters
-    ----------
-    origin : (3,) float, or (n, 3) one per ray
-    dirs : (n, 3) float
-    centers, rotations, sizes : (K, 3), (K, 3, 3), (K, 3) the boxes (full sizes)
-    grow : float
-        Added to every half size (metres).
-
-    Returns
-    -------
-    t : (n,) float, ray parameter of the entry point (inf: no hit; rays starting inside a
-        box do not hit it)
-    box : (n,) int, the box hit (-1: none)
-    face : (n,) int, ``2 * axis + (1 if the face is on the + side)``, -1 for none
-    """
-    dirs = np.asarray(dirs, float)
-    n, K = len(dirs), len(centers)
-    t_out = np.full(n, np.inf)
-    box = np.full(n, -1, np.int64)
-    face = np.full(n, -1, np.int64)
-    if n == 0 or K == 0:
-        return t_out, box, face
-    half = np.asarray(sizes, float) / 2 + grow
-    R = np.asarray(rotations, float)
-    orig = np.asarray(origin, float)
-    per_ray = orig.ndim == 2
-    for s in range(0, n, RAY_CHUNK):
-        d = np.einsum("kji,nj->nki", R, dirs[s:s + RAY_CHUNK])  # local directions (m, K, 3)
-        if per_ray:
-            o = np.einsum("kji,nkj->nki", R, orig[s:s + RAY_CHUNK, None, :] - centers[None])
-        else:
-            o = np.einsum("kji,kj->ki", R, orig[None] - centers)[None]  # (1, K, 3)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / d
-            t1 = (-half[None] - o) * inv
-            t2 = (half[None] - o) * inv
-        t1 = np.where(np.isnan(t1), -np.inf, t1)
-        t2 = np.where(np.isnan(t2), np.inf, t2)
-        lo, hi = np.minimum(t1, t2), np.maximum(t1, t2)
-        tn, tf = lo.max(axis=2), hi.min(axis=2)
-        hit = (tn <= tf) & (tn > 0)
-        tn = np.where(hit, tn, np.inf)
-        k = np.argmin(tn, axis=1)
-        rows = np.arange(len(k))
-        tk = tn[rows, k]
-        ok = np.isfinite(tk)
-        axis = np.argmax(lo[rows, k], axis=1)
-        plus = d[rows, k, axis] < 0  # entering through the + face when moving towards -
-        sl = slice(s, s + len(k))
-        t_out[sl] = tk
-        box[sl] = np.where(ok, k, -1)
-        face[sl] = np.where(ok, 2 * axis + plus, -1)
-    return t_out, box, face
-
-
-def cast_supports(origin: np.ndarray, dirs: np.ndarray, arr: Arrangement
-                  ) -> tuple[np.ndarray, np.ndarray]:
-    """First hit of rays with the support planes of ``arr`` (from their free side).
-
-    Returns ``t (n,)`` (inf: none) and ``support (n,)`` (index into ``arr.supports``, -1).
-    """
-    n = len(dirs)
-    t = np.full(n, np.inf)
-    which = np.full(n, -1, np.int64)
-    for s, sup in enumerate(arr.supports):
-        dn = dirs @ sup.normal
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ts = ((sup.point - origin) @ sup.normal) / dn
-        ok = (dn < 0) & (ts > 0) & (ts < t)
-        t = np.where(ok, ts, t)
-        which = np.where(ok, s, which)
-    return t, which
-
-
-def _boxes(cubs: list[Cuboid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    if not cubs:
-        return np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 3))
-    return (np.stack([c.center for c in cubs]), np.stack([c.rotation for c in cubs]),
-            np.stack([c.size for c in cubs]))
-
-
-def inside_boxes(points: np.ndarray, cubs: list[Cuboid], grow: float = 0.0) -> np.ndarray:
-    """(n,) bool: whether each point lies in one of ``cubs`` grown by ``grow`` metres."""
-    C, R, S = _boxes(cubs)
-    out = np.zeros(len(points), bool)
-    for k in range(len(cubs)):  # a handful of boxes; vectorised over points
-        local = (points - C[k]) @ R[k]
-        out |= np.all(np.abs(local) <= S[k] / 2 + grow, axis=1)
-    return out
-
-
-def silhouette(view: View, cubs: list[Cuboid]) -> np.ndarray:
-    """(H, W) bool: the pixels whose centre ray meets one of ``cubs`` (occlusion ignored)."""
-    H, W = view.depth.shape
-    out = np.zeros((H, W), bool)
-    if not cubs:
-        return out
-    v, u = np.mgrid[0:H, 0:W]
-    o, d = pixel_rays(view, u.ravel(), v.ravel())
-    t, _, _ = cast_boxes(o, d, *_boxes(cubs))
-    return np.isfinite(t).reshape(H, W)
-
-
 # ----------------------------------------------------------------------------- filling
-def pull_push(image: np.ndarray, known: np.ndarray) -> np.ndarray:
-    """Fill every pixel from the ``known`` ones by pull-push (Gortler et al. 1996).
-
-    Pull: average colour and coverage down an image pyramid; push: at each finer level a
-    pixel keeps its own average where its coverage is full and blends in the coarser
-    estimate where it is not.  Smooth, and exact on the known pixels.
-
-    Parameters
-    ----------
-    image : (H, W, 3) float
-    known : (H, W) bool
-
-    Returns
-    -------
-    (H, W, 3) float
-    """
-    import cv2
-
-    w = known.astype(np.float32)
-    num = image.astype(np.float32) * w[..., None]
-    levels = [(num, w)]
-    while min(levels[-1][1].shape) > 2:
-        n, ww = levels[-1]
-        levels.append((cv2.pyrDown(n), cv2.pyrDown(ww)))
-    n, ww = levels[-1]
-    est = np.where(ww[..., None] > 1e-6, n / np.maximum(ww, 1e-6)[..., None],
-                   n.reshape(-1, 3).sum(0) / max(float(ww.sum()), 1e-6))
-    for n, ww in reversed(levels[:-1]):
-        up = cv2.pyrUp(est.astype(np.float32), dstsize=(ww.shape[1], ww.shape[0]))
-        a = np.clip(ww, 0.0, 1.0)[..., None]
-        est = np.where(a > 1e-6, n / np.maximum(ww, 1e-6)[..., None], 0.0) * a + up * (1 - a)
-    return np.where(known[..., None], image, est)
-
-
-def shift_fill(out: np.ndarray, image: np.ndarray, src: np.ndarray, tgt: np.ndarray,
-               min_cover: float = 0.97, min_pixels: int = 30) -> None:
-    """Give each connected part of ``tgt`` the texture of a copy of itself shifted onto
-    ``src`` pixels, blended at its border (in place on ``out``).
-
-    Per part the shift is the one with least ``|dx| + 2 |dy|`` (rows change scale under
-    perspective, columns less) whose shifted part lands on ``src`` for at least
-    ``min_cover`` of its pixels; the coverage of every shift comes from one FFT
-    correlation.  The copy is corrected by the membrane (pull-push) interpolation of
-    the colour differences along the part's border, so it meets its surroundings
-    without a seam (a Poisson-like blend).  Parts with no such shift, or smaller than
-    ``min_pixels``, keep what ``out`` holds (the smooth fill).
-
-    Parameters
-    ----------
-    out : (H, W, 3) float, modified in place
-    image : (H, W, 3) float, the colours to copy (valid on ``src``)
-    src, tgt : (H, W) bool
-    """
-    import cv2
-    from scipy.signal import fftconvolve
-
-    H, W = src.shape
-    n, comp = cv2.connectedComponents(tgt.astype(np.uint8), connectivity=8)
-    srcf = src.astype(np.float64)
-    for c in range(1, n):
-        part = comp == c
-        ys, xs = np.nonzero(part)
-        if len(ys) < min_pixels:
-            continue
-        y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
-        if y1 - y0 >= H or x1 - x0 >= W:
-            continue
-        t = part[y0:y1, x0:x1].astype(np.float64)
-        cover = fftconvolve(srcf, t[::-1, ::-1], mode="valid") / len(ys)  # (H-h+1, W-w+1)
-        p, q = np.nonzero(cover >= min_cover)
-        if len(p) == 0:
-            continue
-        dy, dx = p - y0, q - x0
-        best = np.argmin(np.abs(dx) + 2 * np.abs(dy))
-        dy, dx = int(dy[best]), int(dx[best])
-        ok = src[ys + dy, xs + dx]
-        copy = image[ys + dy, xs + dx]
-        # border: the known pixels around the part, and what the copy would put there
-        ring = cv2.dilate(part.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool) \
-            & ~tgt & src
-        ry, rx = np.nonzero(ring)
-        inside = (ry + dy >= 0) & (ry + dy < H) & (rx + dx >= 0) & (rx + dx < W)
-        ry, rx = ry[inside], rx[inside]
-        pad = 4
-        by0, by1 = max(y0 - pad, 0), min(y1 + pad, H)
-        bx0, bx1 = max(x0 - pad, 0), min(x1 + pad, W)
-        resid = np.zeros((by1 - by0, bx1 - bx0, 3), np.float32)
-        known = np.zeros(resid.shape[:2], bool)
-        resid[ry - by0, rx - bx0] = image[ry, rx] - image[ry + dy, rx + dx]
-        known[ry - by0, rx - bx0] = True
-        if known.any():
-            corr = pull_push(resid, known)[ys - by0, xs - bx0]
-        else:
-            corr = 0.0
-        out[ys[ok], xs[ok]] = (copy + corr)[ok]
-
-
 def fill_hole(view: View, hole: np.ndarray, remaining: Arrangement, params: EditParams,
               cast: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """The colour image with ``hole`` filled (see the module docstring, step 2).
 
     ``cast``: the remaining arrangement's (depth, surface label) per pixel when known
-    (:func:`_cast_scene`); labels are 1 + cuboid index, -(1 + support index), 0 none.
+    (:func:`simulate.raycast.cast_scene`); labels are 1 + cuboid index, -(1 + support
+    index), 0 none.
     """
     import cv2
 
@@ -710,7 +129,7 @@ def fill_hole(view: View, hole: np.ndarray, remaining: Arrangement, params: Edit
     todo = hole.copy()
     out = img.astype(np.float32)
     if params.fill == "surface":
-        t_rem, lab = cast if cast is not None else _cast_scene(view, remaining)
+        t_rem, lab = cast if cast is not None else cast_scene(view, remaining)
         d = view.depth
         agree = (d > 0) & (np.abs(d - t_rem) <= params.seen_tol + 0.02 * d)
         known_lab = np.where(~hole & agree, lab, 0)
@@ -736,19 +155,6 @@ def fill_hole(view: View, hole: np.ndarray, remaining: Arrangement, params: Edit
         out = cv2.inpaint(u8, todo.astype(np.uint8) * 255, params.inpaint_radius, flag
                           ).astype(np.float32)
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
-
-
-def _cast_scene(view: View, arr: Arrangement) -> tuple[np.ndarray, np.ndarray]:
-    """Per pixel: depth of the first surface of ``arr`` (cuboids and supports; inf: none)
-    and its label (1 + cuboid index, -(1 + support index), 0 none)."""
-    H, W = view.depth.shape
-    v, u = np.mgrid[0:H, 0:W]
-    o, d = pixel_rays(view, u.ravel(), v.ravel())
-    tb, kb, _ = cast_boxes(o, d, *_boxes(list(arr.cuboids)))
-    ts, ks = cast_supports(o, d, arr)
-    lab = np.where(tb <= ts, kb + 1, np.where(ks >= 0, -(ks + 1), 0))
-    lab = np.where(np.isfinite(np.minimum(tb, ts)), lab, 0)
-    return np.minimum(tb, ts).reshape(H, W), lab.reshape(H, W)
 
 
 # ----------------------------------------------------------------------------- the edit
@@ -799,7 +205,7 @@ def hole_mask(view: View, cubs: list[Cuboid], params: EditParams,
     mask[v, u] = inside_boxes(pts, cubs, params.margin)
     H_, W_ = np.mgrid[0:H, 0:W]
     o, dirs = pixel_rays(view, W_.ravel(), H_.ravel())
-    front, _, _ = cast_boxes(o, dirs, *_boxes(cubs))
+    front, _, _ = cast_boxes(o, dirs, *box_arrays(cubs))
     front = front.reshape(H, W)
     mask |= np.isfinite(front) & ~(d > 0)
     if behind is not None:
@@ -823,7 +229,7 @@ def _face_colours(view: View, cubs: list[Cuboid], params: EditParams
     K = len(cubs)
     v, u = np.mgrid[0:H, 0:W]
     o, d = pixel_rays(view, u.ravel(), v.ravel())
-    t, k, f = cast_boxes(o, d, *_boxes(cubs))
+    t, k, f = cast_boxes(o, d, *box_arrays(cubs))
     z = view.depth.ravel()
     seen = (k >= 0) & (z > 0) & (np.abs(z - t) <= params.seen_tol + 0.02 * z)
     col = view.image.reshape(-1, 3).astype(float)
@@ -950,7 +356,7 @@ def edit_image(view: View, plan: EditPlan, params: EditParams | None = None,
     light = light / np.linalg.norm(light)
 
     step("mask")
-    t_rem, lab = _cast_scene(view, remaining)
+    t_rem, lab = cast_scene(view, remaining)
     hole = hole_mask(view, gone, params, behind=t_rem)
     old_region = silhouette(view, gone)
     new_region = silhouette(view, placed)
@@ -969,7 +375,7 @@ def edit_image(view: View, plan: EditPlan, params: EditParams | None = None,
     shadow = np.zeros((H, W))
     if params.shadow and placed:
         step("shadow")
-        C, R, S = _boxes(placed)
+        C, R, S = box_arrays(placed)
         corners = np.concatenate([c.corners() for c in placed])
         top = corners[:, 2].max()
         lo, hi = corners[:, :2].min(0), corners[:, :2].max(0)
@@ -1067,7 +473,7 @@ def _render_moved(view: View, placed: list[Cuboid], offsets: np.ndarray,
     u = x0 + (uu.ravel() + 0.5) / s - 0.5
     v = y0 + (vv.ravel() + 0.5) / s - 0.5
     o, d = pixel_rays(view, u, v)
-    C, R, S = _boxes(placed)
+    C, R, S = box_arrays(placed)
     t_box, k, f = cast_boxes(o, d, C, R, S)
     # retrieved models: rasterised into the same sub-pixel grid
     n = len(u)
@@ -1129,67 +535,6 @@ def _render_moved(view: View, placed: list[Cuboid], offsets: np.ndarray,
     return alpha, colour
 
 
-# ------------------------------------------------------------------------------ metrics
-def psnr(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """Peak signal-to-noise ratio (dB, peak 255) of two uint8 images over ``mask`` pixels
-    (all when None); inf when they are equal there, NaN when the mask is empty."""
-    diff = a.astype(float) - b.astype(float)
-    if mask is not None:
-        diff = diff[mask]
-    if diff.size == 0:
-        return float("nan")
-    mse = float(np.mean(diff ** 2))
-    return float("inf") if mse == 0 else float(10 * np.log10(255.0 ** 2 / mse))
 
-
-def ssim_map(a: np.ndarray, b: np.ndarray, sigma: float = 1.5) -> np.ndarray:
-    """Per-pixel SSIM (Wang et al. 2004) of two uint8 images, Gaussian window of
-    ``sigma`` pixels (``cv2.GaussianBlur``), K1 = 0.01, K2 = 0.03, L = 255, averaged over
-    the colour channels.  Returns (H, W) float."""
-    import cv2
-
-    c1, c2 = (0.01 * 255) ** 2, (0.03 * 255) ** 2
-    x, y = a.astype(np.float64), b.astype(np.float64)
-
-    def blur(z):
-        return cv2.GaussianBlur(z, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
-
-    mx, my = blur(x), blur(y)
-    sxx, syy, sxy = blur(x * x) - mx * mx, blur(y * y) - my * my, blur(x * y) - mx * my
-    s = ((2 * mx * my + c1) * (2 * sxy + c2)) / ((mx * mx + my * my + c1) * (sxx + syy + c2))
-    return s.mean(axis=2) if s.ndim == 3 else s
-
-
-def ssim(a: np.ndarray, b: np.ndarray, mask: np.ndarray | None = None) -> float:
-    """Mean :func:`ssim_map` over ``mask`` (all pixels when None; NaN when empty)."""
-    m = ssim_map(a, b)
-    vals = m[mask] if mask is not None else m.ravel()
-    return float(vals.mean()) if vals.size else float("nan")
-
-
-def side_by_side(images: list[np.ndarray], labels: list[str] | None = None,
-                 width: int | None = None) -> np.ndarray:
-    """Images in a row (each scaled to ``width`` pixels wide when given), with labels."""
-    import cv2
-
-    out = []
-    for k, im in enumerate(images):
-        if width is not None and im.shape[1] != width:
-            h = int(round(im.shape[0] * width / im.shape[1]))
-            im = cv2.resize(im, (width, h), interpolation=cv2.INTER_AREA)
-        im = np.ascontiguousarray(im.copy())
-        if labels:
-            cv2.putText(im, labels[k], (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3,
-                        cv2.LINE_AA)
-            cv2.putText(im, labels[k], (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5,
-                        (255, 255, 255), 1, cv2.LINE_AA)
-        out.append(im)
-        if k < len(images) - 1:
-            out.append(np.full((im.shape[0], 4, 3), 255, np.uint8))
-    return np.concatenate(out, axis=1)
-
-
-__all__ = ["EditParams", "Operation", "EditPlan", "GroupEdit", "View", "EditImages",
-           "PlacedModel", "read_retrieved", "plan_edit", "carried_set", "support_graph", "object_names", "view_of",
-           "edit_image", "hole_mask", "fill_hole", "pull_push", "cast_boxes",
-           "cast_supports", "silhouette", "psnr", "ssim", "ssim_map", "side_by_side"]
+__all__ = ["EditParams", "FILLS", "EditImages", "PlacedModel", "read_retrieved", "edit_image",
+           "hole_mask", "fill_hole", "bilinear"]

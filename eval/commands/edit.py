@@ -3,7 +3,8 @@
 The paper's image manipulation (section 6 iii) in the original camera view: the object
 moves along the floor with what it carries, or disappears; the hole it leaves is filled,
 it is drawn at its new place with a shadow from above, and moves the arrangement's
-physics forbids are refused.  The method is :mod:`simulate.edit`.
+physics forbids are refused.  The method is :mod:`simulate.edit` (the image) and
+:mod:`simulate.edit_plan` (what moves, what is refused).
 """
 
 from __future__ import annotations
@@ -89,9 +90,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def operations(args: argparse.Namespace) -> list:
-    """The :class:`simulate.edit.Operation` list of the options (removals first)."""
+    """The :class:`simulate.edit_plan.Operation` list of the options (removals first)."""
     from pipeline.errors import InputError
-    from simulate.edit import Operation
+    from simulate.edit_plan import Operation
 
     ops = [Operation("remove", name) for name in args.remove]
     for name, dx, dy in args.move:
@@ -191,14 +192,10 @@ def run(args: argparse.Namespace) -> int:
     from pipeline.pictures import write_png
     from pipeline.progress import Progress
     from pipeline.run import LoadOptions, load
-    from simulate.edit import (
-        EditParams,
-        edit_image,
-        plan_edit,
-        read_retrieved,
-        side_by_side,
-        view_of,
-    )
+    from simulate.compare_images import side_by_side
+    from simulate.edit import EditParams, edit_image, read_retrieved
+    from simulate.edit_plan import plan_edit
+    from simulate.view import view_of
 
     ops = operations(args)
     if not (math.isfinite(args.margin) and 0 <= args.margin <= 1):

@@ -11,8 +11,8 @@ seeded order) in our result *and* in the truth, staying in the picture.  The tas
 Our edit (:func:`simulate.edit.edit_image` on our result) is compared with the truth:
 the same object moved in ``scene.json`` with its own carried set, rendered from the
 same camera by the virtual sensor without noise.  PSNR and SSIM (Gaussian window,
-sigma 1.5 px, :func:`simulate.edit.ssim`) inside the edited region (the true moved
-cuboids' silhouettes at the old and new places, dilated by :data:`REGION_DILATE_PX`)
+sigma 1.5 px, :func:`simulate.compare_images.ssim`) inside the edited region (the true
+moved cuboids' silhouettes at the old and new places, dilated by :data:`REGION_DILATE_PX`)
 and outside it, for: the unedited image (baseline), our edit (surface fill + shadow),
 without the shadow (the renderer draws none), with OpenCV's Telea or Navier-Stokes
 inpainting alone, and our edit made with the true cuboids (the image step alone).
@@ -55,7 +55,7 @@ METHODS: dict[str, tuple[bool, dict] | None] = {
 
 
 def _volume(arr, name: str) -> float:
-    from simulate.edit import object_of
+    from simulate.edit_plan import object_of
 
     return float(sum(np.prod(c.size) for c in arr.cuboids if object_of(c) == name))
 
@@ -66,7 +66,7 @@ def choose_move(ours, truth, view, rng: np.random.Generator, only: str | None = 
     from pipeline.camera import project
     from pipeline.contacts import find_contacts
     from pipeline.stability import check_stability
-    from simulate.edit import Operation, object_names, plan_edit
+    from simulate.edit_plan import Operation, object_names, plan_edit
 
     true_names = set(object_names(truth))
     names = [n for n in object_names(ours) if n in true_names]
@@ -115,17 +115,11 @@ def edit_task(rng: np.random.Generator, family: str, seed: int, only: str | None
     from eval.suites._scenes import BUDGET, make_scene, run_dir, scratch
     from pipeline.camera import read_pose
     from pipeline.pictures import write_png
-    from simulate.edit import (
-        EditParams,
-        View,
-        edit_image,
-        psnr,
-        side_by_side,
-        silhouette,
-        ssim,
-        view_of,
-    )
+    from simulate.compare_images import psnr, side_by_side, ssim
+    from simulate.edit import EditParams, edit_image
+    from simulate.raycast import silhouette
     from simulate.scan import render
+    from simulate.view import View, view_of
 
     with scratch() as tmp:
         made = make_scene(family, seed, tmp / "scene", view_ranges=view_ranges)

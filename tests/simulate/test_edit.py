@@ -1,5 +1,6 @@
-"""Image edits (``simulate.edit``, ``unseen edit``): what moves with what, what is refused,
-which pixels are deleted, what stays untouched, and the command end to end."""
+"""Image edits (``simulate.edit`` with ``edit_plan``, ``raycast``, ``compare_images``;
+``unseen edit``): what moves with what, what is refused, which pixels are deleted, what
+stays untouched, and the command end to end."""
 
 from __future__ import annotations
 
@@ -55,7 +56,7 @@ def bridge_scene() -> Arrangement:
 
 # ---------------------------------------------------------------------- what moves
 def test_moving_the_table_carries_the_box_not_the_other_way():
-    from simulate.edit import carried_set
+    from simulate.edit_plan import carried_set
 
     arr = table_scene()
     assert carried_set(arr, "table0") == (["table0", "box0"], None)
@@ -64,7 +65,7 @@ def test_moving_the_table_carries_the_box_not_the_other_way():
 
 
 def test_plan_moves_every_cuboid_of_the_group_by_the_offset():
-    from simulate.edit import Operation, plan_edit
+    from simulate.edit_plan import Operation, plan_edit
 
     arr = table_scene()
     plan = plan_edit(arr, [Operation("move", "table0", -0.3, 0.1)])
@@ -79,7 +80,7 @@ def test_plan_moves_every_cuboid_of_the_group_by_the_offset():
 
 def test_a_leaning_plank_is_not_carried_and_a_move_that_drops_it_is_refused():
     from pipeline.stability import check_stability
-    from simulate.edit import Operation, carried_set, plan_edit
+    from simulate.edit_plan import Operation, carried_set, plan_edit
 
     arr = leaning_scene()
     assert check_stability(arr).stable  # it stands because the cabinet holds it
@@ -90,7 +91,7 @@ def test_a_leaning_plank_is_not_carried_and_a_move_that_drops_it_is_refused():
 
 
 def test_a_beam_on_two_pillars_cannot_go_with_one():
-    from simulate.edit import Operation, carried_set, plan_edit
+    from simulate.edit_plan import Operation, carried_set, plan_edit
 
     arr = bridge_scene()
     group, conflict = carried_set(arr, "pillar1")
@@ -111,7 +112,7 @@ def test_a_beam_on_two_pillars_cannot_go_with_one():
     (("move", "box0", 0.2, 0.0), None),   # still on the table
 ])
 def test_refusals_are_one_line(op, expected):
-    from simulate.edit import Operation, plan_edit
+    from simulate.edit_plan import Operation, plan_edit
 
     plan = plan_edit(table_scene(), [Operation(*op)])
     if expected is None:
@@ -122,7 +123,7 @@ def test_refusals_are_one_line(op, expected):
 
 
 def test_glue_to_the_floor_travels_with_the_object():
-    from simulate.edit import Operation, plan_edit
+    from simulate.edit_plan import Operation, plan_edit
 
     arr = table_scene()
     arr = arr.with_(contacts=arr.contacts + (Contact("c", "ground", "fixed"),))
@@ -132,7 +133,7 @@ def test_glue_to_the_floor_travels_with_the_object():
 
 
 def test_removing_the_table_takes_its_box():
-    from simulate.edit import Operation, plan_edit
+    from simulate.edit_plan import Operation, plan_edit
 
     plan = plan_edit(table_scene(), [Operation("remove", "table0")])
     assert plan.ok
@@ -142,7 +143,7 @@ def test_removing_the_table_takes_its_box():
 
 # ---------------------------------------------------------------------- ray casting, metrics
 def test_cast_boxes_hits_the_near_face_at_the_right_depth():
-    from simulate.edit import cast_boxes
+    from simulate.raycast import cast_boxes
 
     C, R, S = np.array([[0.0, 0, 5]]), np.eye(3)[None], np.array([[4.0, 2, 2]])
     dirs = np.array([[0.0, 0, 1], [0.3, 0, 1], [0.0, 0, -1]])
@@ -153,7 +154,7 @@ def test_cast_boxes_hits_the_near_face_at_the_right_depth():
 
 
 def test_ssim_and_psnr_closed_forms():
-    from simulate.edit import psnr, ssim
+    from simulate.compare_images import psnr, ssim
 
     a = np.full((20, 20, 3), 100, np.uint8)
     b = np.full((20, 20, 3), 120, np.uint8)
@@ -166,8 +167,8 @@ def test_ssim_and_psnr_closed_forms():
 # ---------------------------------------------------------------------- pixels
 @pytest.fixture(scope="module")
 def rendered():
-    from simulate.edit import View
     from simulate.scan import render
+    from simulate.view import View
 
     arr = table_scene()
     frame = render(arr, INTR, T_CAM)
@@ -177,7 +178,8 @@ def rendered():
 def test_the_mask_covers_the_object_pixels_and_little_else(rendered):
     import cv2
 
-    from simulate.edit import EditParams, hole_mask, inside_boxes, pixel_rays
+    from simulate.edit import EditParams, hole_mask
+    from simulate.raycast import inside_boxes, pixel_rays
 
     arr, frame, view = rendered
     params = EditParams(margin=0.03, dilate_px=3)
@@ -201,7 +203,9 @@ def test_the_mask_covers_the_object_pixels_and_little_else(rendered):
 def test_after_equals_before_far_from_the_edit_and_matches_the_truth_near_it(rendered):
     import cv2
 
-    from simulate.edit import EditParams, Operation, edit_image, plan_edit, psnr
+    from simulate.compare_images import psnr
+    from simulate.edit import EditParams, edit_image
+    from simulate.edit_plan import Operation, plan_edit
     from simulate.scan import render
 
     arr, frame, view = rendered
@@ -224,7 +228,8 @@ def test_after_equals_before_far_from_the_edit_and_matches_the_truth_near_it(ren
 def test_a_retrieved_model_is_drawn_where_its_box_would_be(rendered, tmp_path):
     import trimesh
 
-    from simulate.edit import EditParams, Operation, edit_image, plan_edit, read_retrieved
+    from simulate.edit import EditParams, edit_image, read_retrieved
+    from simulate.edit_plan import Operation, plan_edit
 
     arr, frame, view = rendered
     crate = arr.cuboid("c")
