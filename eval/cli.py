@@ -37,6 +37,10 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                "unseen import scene.xml --out arrangement.json"),
     "regress": ("eval.commands.regress", "record the results of your own scans, verify them later",
                 "unseen regress verify my_scans --junit regress.xml"),
+    "models": ("eval.commands.models", "make a repository of furniture meshes for retrieval",
+               "unseen models make --out models"),
+    "retrieve": ("eval.commands.retrieve", "place a repository model on each object of a result",
+                 "unseen retrieve result --models models --out retrieved"),
     "edit": ("eval.commands.edit", "move or remove an object in the original colour image",
              "unseen edit scan result --move table0 0.3 0 --out edited"),
 }

@@ -14,12 +14,15 @@ stack          ``n_boxes`` boxes: tower, staggered pier, pyramid,     n (3-10)
                or scattered short towers (``variant``)
 counterweight  plank over a block's edge held by a weight             3-4
 bridge         pillars and decks (1-2 spans), boxes on top            4-11
-table          top + 4 legs fused, things on the top                  6-15
+table          top + 4 legs fused, things on the top (``style``:      6-15
+               3 legs, or a pedestal: column on a foot)
 chair          seat + 4 legs + back (board or posts and rail) fused   6-8
+               (``arms``: two arm panels more)
 shelf          sides + boards fused, books (some leaning), boxes      10-38
 wall_shelf     boards (and brackets) fused to wall:0, things on them  2-13
 desk           top on panels/drawer block, monitor, keyboard, things  7-14
 sofa           seat, back, arms fused; seat and back cushions         6-10
+               (``arms=False``: no arms)
 room           floor, walls wall:0/wall:1 and a mix of the above      20-60
 =============  ====================================================  ==========
 
@@ -86,14 +89,17 @@ def make_bridge(rng: np.random.Generator) -> Arrangement:
     return _single(objects.bridge(rng, WIDE["bridge"]), "bridge", rng)
 
 
-def make_table(rng: np.random.Generator, n_items: int | None = None) -> Arrangement:
-    """A table (top fused to four legs) with a few things on it."""
-    return _single(objects.table(rng, n_items, WIDE["table"]), "table", rng)
+def make_table(rng: np.random.Generator, n_items: int | None = None,
+               style: str | None = None) -> Arrangement:
+    """A table (top fused to four legs) with a few things on it.
+
+    ``style``: ``three_legs`` or ``pedestal`` instead (:data:`objects.TABLE_STYLES`)."""
+    return _single(objects.table(rng, n_items, WIDE["table"], style), "table", rng)
 
 
-def make_chair(rng: np.random.Generator) -> Arrangement:
-    """A chair: seat, four legs and a back, fused."""
-    return _single(objects.chair(rng, WIDE["chair"]), "chair", rng)
+def make_chair(rng: np.random.Generator, arms: bool | None = None) -> Arrangement:
+    """A chair: seat, four legs and a back, fused; ``arms=True``: with arm panels."""
+    return _single(objects.chair(rng, WIDE["chair"], bool(arms)), "chair", rng)
 
 
 def make_shelf(rng: np.random.Generator) -> Arrangement:
@@ -106,9 +112,9 @@ def make_desk(rng: np.random.Generator) -> Arrangement:
     return _single(objects.desk(rng, WIDE["desk"]), "desk", rng)
 
 
-def make_sofa(rng: np.random.Generator) -> Arrangement:
-    """A sofa of several fused cuboids with cushions."""
-    return _single(objects.sofa(rng, WIDE["sofa"]), "sofa", rng)
+def make_sofa(rng: np.random.Generator, arms: bool | None = None) -> Arrangement:
+    """A sofa of several fused cuboids with cushions; ``arms=False``: without arms."""
+    return _single(objects.sofa(rng, WIDE["sofa"], arms is not False), "sofa", rng)
 
 
 def wall(k: int, point, normal) -> Support:

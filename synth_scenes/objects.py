@@ -479,34 +479,58 @@ def bridge(rng: np.random.Generator, ranges: dict | None = None) -> Group:
 
 
 # ---------------------------------------------------------------------------- furniture
+#: Table styles: ``four_legs`` (the default), ``three_legs`` (two at the back corners,
+#: one at the middle of the front), ``pedestal`` (a square column on a square foot).
+TABLE_STYLES = ("four_legs", "three_legs", "pedestal")
+
+
 def table(rng: np.random.Generator, n_items: int | None = None,
-          ranges: dict | None = None) -> Group:
+          ranges: dict | None = None, style: str | None = None) -> Group:
     """A top fused to four legs (legs touch the floor) and a few things on the top.
 
     ``ranges``: sizes and the number of things (default ``CLASSIC["table"]``).
+    ``style``: one of :data:`TABLE_STYLES` (None: four legs, drawing exactly what the
+    builder always drew).
     """
+    if style is not None and style not in TABLE_STYLES:
+        raise ValueError(f"style: one of {', '.join(TABLE_STYLES)}, got {style!r}")
     r = CLASSIC["table"] if ranges is None else ranges
     W, D = _u(rng, *r["width"]), _u(rng, *r["depth"])
     T, H = _u(rng, *r["top"]), _u(rng, *r["height"])
     leg, inset = _u(rng, *r["leg"]), _u(rng, *r["inset"])
     g = Group()
     top = g.add((0, 0, H - T / 2), (W, D, T), "table")
-    for sx in (-1, 1):
-        for sy in (-1, 1):
-            k = g.add((sx * (W / 2 - inset - leg / 2), sy * (D / 2 - inset - leg / 2),
-                       (H - T) / 2), (leg, leg, H - T), "table")
+    ex, ey = W / 2 - inset - leg / 2, D / 2 - inset - leg / 2
+    if style in (None, "four_legs"):
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                k = g.add((sx * ex, sy * ey, (H - T) / 2), (leg, leg, H - T), "table")
+                g.fix(k, top)
+                g.touch(k, "ground")
+    elif style == "three_legs":
+        for x, y in ((-ex, ey), (ex, ey), (0.0, -ey)):
+            k = g.add((x, y, (H - T) / 2), (leg, leg, H - T), "table")
             g.fix(k, top)
             g.touch(k, "ground")
+    else:  # pedestal: a square column on a square foot plate
+        col = min(2.5 * leg, 0.3 * min(W, D))
+        fw, ft = _u(rng, 0.55, 0.75) * min(W, D), _u(rng, 0.02, 0.04)
+        foot = g.add((0, 0, ft / 2), (fw, fw, ft), "table")
+        g.touch(foot, "ground")
+        k = g.add((0, 0, ft + (H - T - ft) / 2), (col, col, H - T - ft), "table")
+        g.fix(k, foot)
+        g.fix(k, top)
     n_items = _count(rng, r["items"]) if n_items is None else n_items
     place_items(rng, g, top, surface_items(rng, n_items), (-W / 2, W / 2, -D / 2, D / 2))
     return g
 
 
-def chair(rng: np.random.Generator, ranges: dict | None = None) -> Group:
+def chair(rng: np.random.Generator, ranges: dict | None = None, arms: bool = False) -> Group:
     """Seat fused to four legs and a back (a board, or two posts and a rail); faces -y.
 
     ``ranges``: sizes, and ``p_seat_item``, the chance of a thing on the seat (default
-    ``CLASSIC["chair"]``).
+    ``CLASSIC["chair"]``).  ``arms``: two side panels on the seat, fused to it and to the
+    back (False: no arms, drawing exactly what the builder always drew).
     """
     r = CLASSIC["chair"] if ranges is None else ranges
     W, D = _u(rng, *r["width"]), _u(rng, *r["depth"])
@@ -522,6 +546,7 @@ def chair(rng: np.random.Generator, ranges: dict | None = None) -> Group:
             g.touch(k, "ground")
     bt, bh = _u(rng, *r["back"]), _u(rng, *r["back_height"])
     yb = D / 2 - bt / 2
+    posts: list[int] = []
     if rng.random() < 0.5:
         back = g.add((0, yb, H + bh / 2), (W, bt, bh), "chair")
         g.fix(back, seat)
@@ -533,9 +558,27 @@ def chair(rng: np.random.Generator, ranges: dict | None = None) -> Group:
             k = g.add((sx * (W / 2 - pw / 2), yb, H + ph / 2), (pw, bt, ph), "chair")
             g.fix(k, seat)
             g.fix(rail, k)
+            posts.append(k)
+    x_free = W / 2
+    if arms:
+        # side panels on the seat from its front edge to the back: they touch the back
+        # board, or the posts (and the rail when they reach it: then clearly above it)
+        aw, ah = _u(rng, 0.03, 0.06), min(_u(rng, 0.15, 0.25), 0.8 * bh)
+        if posts and ah > ph - CLEARANCE:
+            ah = min(max(ah, ph + CLEARANCE), bh - 0.01)
+        for i, sx in enumerate((-1, 1)):
+            k = g.add((sx * (W / 2 - aw / 2), -bt / 2, H + ah / 2), (aw, D - bt, ah), "chair")
+            g.fix(k, seat)
+            if posts:
+                g.fix(k, posts[i])
+                if ah > ph:
+                    g.fix(k, rail)
+            else:
+                g.fix(k, back)
+        x_free = W / 2 - aw - CLEARANCE
     if r["p_seat_item"] > 0 and rng.random() < r["p_seat_item"]:
         place_items(rng, g, seat, surface_items(rng, 1, ("box", "book")),
-                    (-W / 2, W / 2, -D / 2, D / 2 - bt - CLEARANCE), margin=0.02)
+                    (-x_free, x_free, -D / 2, D / 2 - bt - CLEARANCE), margin=0.02)
     return g
 
 
@@ -721,14 +764,15 @@ def desk(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     return g
 
 
-def sofa(rng: np.random.Generator, ranges: dict | None = None) -> Group:
+def sofa(rng: np.random.Generator, ranges: dict | None = None, arms: bool = True) -> Group:
     """Seat block, back and two arms fused (all on the floor), seat cushions, maybe back cushions.
 
     Back cushions lean on the back with their foot on the seat block itself, in a strip
     behind the (then shallower) seat cushions.  (Standing them on the seat cushions
     instead let the seat cushions slide 2 cm in PyBullet, though statics and MuJoCo
     agree they hold.)  Faces -y (back at the largest y).  ``ranges``: sizes and the
-    number of seat cushions (default ``CLASSIC["sofa"]``).
+    number of seat cushions (default ``CLASSIC["sofa"]``).  ``arms=False``: no arms, the
+    back as wide as the seat (the same draws, so the proportions are the armed sofa's).
     """
     r = CLASSIC["sofa"] if ranges is None else ranges
     W, D, h = _u(rng, *r["width"]), _u(rng, *r["depth"]), _u(rng, *r["seat"])
@@ -736,8 +780,10 @@ def sofa(rng: np.random.Generator, ranges: dict | None = None) -> Group:
     bd, bh = _u(rng, *r["back"]), _u(rng, *r["back_height"])
     g = Group()
     seat = g.add((0, 0, h / 2), (W, D, h), "sofa")
-    back = g.add((0, D / 2 + bd / 2, bh / 2), (W + 2 * aw, bd, bh), "sofa")
-    arms = [g.add((sx * (W / 2 + aw / 2), 0, ah / 2), (aw, D, ah), "sofa") for sx in (-1, 1)]
+    with_arms = arms
+    back = g.add((0, D / 2 + bd / 2, bh / 2), (W + 2 * aw if with_arms else W, bd, bh), "sofa")
+    arms = [g.add((sx * (W / 2 + aw / 2), 0, ah / 2), (aw, D, ah), "sofa")
+            for sx in (-1, 1)] if with_arms else []
     for k in (seat, back, *arms):
         g.touch(k, "ground")
     g.fix(seat, back)
@@ -762,9 +808,9 @@ def sofa(rng: np.random.Generator, ranges: dict | None = None) -> Group:
         g.touch(k, seat)
         if not with_back:
             g.touch(k, back)
-        if i == 0:
+        if i == 0 and arms:
             g.touch(k, arms[0])
-        if i == n - 1:
+        if i == n - 1 and arms:
             g.touch(k, arms[1])
         if i > 0:
             g.touch(k, cushions[-1])
