@@ -52,6 +52,9 @@ DATASET_FAMILIES = ("stack", "counterweight", "bridge", "table", "chair", "shelf
 #: Integer family options a configuration may give as ranges, and their bounds.
 FAMILY_OPTIONS = {"stack": {"n_boxes": (1, 200)}, "table": {"n_items": (0, 20)},
                   "room": {"n_objects": (1, 100)}}
+#: Style options a configuration may give as a list of choices (one drawn per scene).
+FAMILY_STYLES = {"table": {"style": ("four_legs", "three_legs", "pedestal")},
+                 "chair": {"arms": (False, True)}, "sofa": {"arms": (True, False)}}
 #: Bounds of the other knobs.
 MAX_VIEWS = 16
 SCALE_RANGE = (0.25, 4.0)
@@ -84,8 +87,9 @@ class DatasetConfig:
     scale : (float, float)
         Each scene is scaled as a whole by a factor drawn from this range.
     options : dict
-        Family -> option -> (lo, hi) integer range (:data:`FAMILY_OPTIONS`): clutter and
-        the number of objects.
+        Family -> option -> (lo, hi) integer range (:data:`FAMILY_OPTIONS`: clutter and
+        the number of objects) or a tuple of style choices (:data:`FAMILY_STYLES`: table
+        legs or pedestal, chairs and sofas with or without arms).
     max_attempts : int
         Samples per scene before giving up (each failed sample is counted).
     """
@@ -125,6 +129,16 @@ def _range(value: Any, where: str, kind: type, lo: float, hi: float) -> tuple:
     if not (math.isfinite(a) and math.isfinite(b) and lo <= a <= b <= hi):
         raise InputError(f"{where}: need {lo:g} <= lo <= hi <= {hi:g}, got {value!r}")
     return (a, b)
+
+
+def _choices(value: Any, where: str, allowed: tuple) -> tuple:
+    """A list of style choices (or one), each one of ``allowed``."""
+    vals = value if isinstance(value, (list, tuple)) else [value]
+    bad = [v for v in vals if v not in allowed or isinstance(v, bool) != isinstance(allowed[0], bool)]
+    if not vals or bad:
+        raise InputError(f"{where}: expected a list of {', '.join(map(repr, allowed))}, got "
+                         f"{value!r}")
+    return tuple(dict.fromkeys(vals))
 
 
 def parse_split(text: str) -> tuple[float, float, float]:
@@ -172,7 +186,7 @@ def parse_families(text: str) -> tuple[str, ...]:
 CONFIG_KEYS = {"camera": ("distance", "height", "azimuth", "elevation"),
                "scan": ("noise", "renderer", "views"),
                "scene": ("scale", "max_attempts"),
-               "families": tuple(FAMILY_OPTIONS)}
+               "families": tuple(dict.fromkeys([*FAMILY_OPTIONS, *FAMILY_STYLES]))}
 
 
 def read_config(path: str | os.PathLike, base: DatasetConfig | None = None) -> DatasetConfig:
@@ -186,6 +200,8 @@ def read_config(path: str | os.PathLike, base: DatasetConfig | None = None) -> D
         [families.stack]  n_boxes = [3, 8]
         [families.table]  n_items = [0, 4]
         [families.room]   n_objects = [4, 10]
+        [families.table]  style = ["four_legs", "pedestal"]     # one drawn per scene
+        [families.chair]  arms = [false, true]
 
     Raises :class:`InputError` naming the file and the key for anything unknown or out of
     range.
@@ -266,13 +282,17 @@ def config_from_mapping(data: Any, source: str = "config",
             for fam, fbody in body.items():
                 if not isinstance(fbody, Mapping):
                     raise InputError(f"{where}.{fam}: expected a table of options")
-                known = FAMILY_OPTIONS[fam]
+                known = FAMILY_OPTIONS.get(fam, {})
+                styles = FAMILY_STYLES.get(fam, {})
                 for key, value in fbody.items():
-                    if key not in known:
-                        raise InputError(f"{source}: [families.{fam}] {key}: unknown option; "
-                                         f"{fam} takes {', '.join(known)}")
-                    opts.setdefault(fam, {})[key] = _range(
-                        value, f"{source}: [families.{fam}] {key}", int, *known[key])
+                    where_k = f"{source}: [families.{fam}] {key}"
+                    if key in styles:
+                        opts.setdefault(fam, {})[key] = _choices(value, where_k, styles[key])
+                    elif key in known:
+                        opts.setdefault(fam, {})[key] = _range(value, where_k, int, *known[key])
+                    else:
+                        raise InputError(f"{where_k}: unknown option; {fam} takes "
+                                         f"{', '.join([*known, *styles])}")
             changes["options"] = opts
     return DatasetConfig(**{**asdict(cfg), **changes})
 
@@ -340,8 +360,12 @@ def plan(cfg: DatasetConfig) -> list[ScenePlan]:
         views = int(rng.integers(cfg.views[0], cfg.views[1] + 1))
         lo, hi = cfg.scale
         scale = float(round(rng.uniform(lo, hi), 4)) if hi > lo else float(lo)
-        opts = {k: int(rng.integers(a, b + 1))
-                for k, (a, b) in sorted(cfg.options.get(fam, {}).items())}
+        opts = {}
+        for k, v in sorted(cfg.options.get(fam, {}).items()):
+            if k in FAMILY_STYLES.get(fam, {}):
+                opts[k] = v[int(rng.integers(len(v)))]
+            else:
+                opts[k] = int(rng.integers(v[0], v[1] + 1))
         out.append(ScenePlan(i, f"{fam}-{seed:06d}", fam, seed, split_of[i], views, scale, opts))
     return out
 

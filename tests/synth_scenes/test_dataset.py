@@ -51,6 +51,24 @@ def test_a_scene_does_not_change_with_n():
     assert all(set(p.options) == {"n_objects"} for p in large if p.family == "room")
 
 
+def test_style_choices_are_drawn_per_scene_and_made(tmp_path):
+    (tmp_path / "k.toml").write_text("[families.table]\nstyle = ['pedestal', 'three_legs']\n"
+                                     "[families.chair]\narms = [true]\n")
+    cfg = replace(ds.read_config(tmp_path / "k.toml"), families=("table", "chair"), n=12)
+    plans = ds.plan(cfg)
+    styles = {p.options["style"] for p in plans if p.family == "table"}
+    assert styles == {"pedestal", "three_legs"}
+    assert all(p.options == {"arms": True} for p in plans if p.family == "chair")
+    from synth_scenes.registry import make
+
+    parts = {"pedestal": 3, "three_legs": 4}  # top + column + foot; top + 3 legs
+    for sp in (p for p in plans if p.family == "table"):
+        arr = make("table", np.random.default_rng(sp.seed), **sp.options)
+        assert sum(c.object == "table0" for c in arr.cuboids) == parts[sp.options["style"]]
+    with pytest.raises(InputError, match=r"\[families.chair\] arms: expected a list of"):
+        ds.config_from_mapping({"families": {"chair": {"arms": ["yes"]}}}, "k.toml")
+
+
 def test_deal_is_exact_for_any_n():
     for n in range(0, 60):
         counts = ds._deal(n, (0.8, 0.1, 0.1))
