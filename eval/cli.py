@@ -37,6 +37,8 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
                "unseen import scene.xml --out arrangement.json"),
     "regress": ("eval.commands.regress", "record the results of your own scans, verify them later",
                 "unseen regress verify my_scans --junit regress.xml"),
+    "complete": ("eval.commands.complete", "complete a partial scan from a good scan of the same kind",
+                 "unseen complete partial_scan --template good_scan --out completed"),
     "models": ("eval.commands.models", "make a repository of furniture meshes for retrieval",
                "unseen models make --out models"),
     "retrieve": ("eval.commands.retrieve", "place a repository model on each object of a result",
