@@ -90,6 +90,9 @@ class DatasetConfig:
         Family -> option -> (lo, hi) integer range (:data:`FAMILY_OPTIONS`: clutter and
         the number of objects) or a tuple of style choices (:data:`FAMILY_STYLES`: table
         legs or pedestal, chairs and sofas with or without arms).
+    proportions : dict
+        Family -> length name -> (lo, hi) metres, replacing the generator's range
+        (:func:`proportion_names`), e.g. ``{"table": {"height": (0.5, 0.9)}}``.
     max_attempts : int
         Samples per scene before giving up (each failed sample is counted).
     """
@@ -104,6 +107,7 @@ class DatasetConfig:
     camera: dict = field(default_factory=dict)
     scale: tuple[float, float] = (1.0, 1.0)
     options: dict = field(default_factory=dict)
+    proportions: dict = field(default_factory=dict)
     max_attempts: int = 25
 
     def to_json(self) -> dict:
@@ -113,6 +117,8 @@ class DatasetConfig:
         d["views"] = list(self.views)
         d["scale"] = list(self.scale)
         d["options"] = {f: {k: list(v) for k, v in o.items()} for f, o in self.options.items()}
+        d["proportions"] = {f: {k: list(v) for k, v in o.items()}
+                            for f, o in self.proportions.items()}
         d["camera"] = {k: list(v) for k, v in self.camera.items()}
         return d
 
@@ -186,7 +192,20 @@ def parse_families(text: str) -> tuple[str, ...]:
 CONFIG_KEYS = {"camera": ("distance", "height", "azimuth", "elevation"),
                "scan": ("noise", "renderer", "views"),
                "scene": ("scale", "max_attempts"),
-               "families": tuple(dict.fromkeys([*FAMILY_OPTIONS, *FAMILY_STYLES]))}
+               "families": tuple(dict.fromkeys([*FAMILY_OPTIONS, *FAMILY_STYLES])),
+               "proportions": ("counterweight", "bridge", "table", "chair", "shelf",
+                               "wall_shelf", "desk", "sofa")}
+
+
+def proportion_names(family: str) -> tuple[str, ...]:
+    """The lengths of a family's proportion table that a configuration may set: those
+    whose range in :data:`synth_scenes.objects.WIDE` is one ``(lo, hi)`` pair of metres
+    (counts, probabilities and per-axis triples stay the generator's)."""
+    from .objects import WIDE
+
+    return tuple(k for k, v in WIDE[family].items()
+                 if isinstance(v, tuple) and len(v) == 2
+                 and all(isinstance(x, float) for x in v))
 
 
 def read_config(path: str | os.PathLike, base: DatasetConfig | None = None) -> DatasetConfig:
@@ -202,6 +221,7 @@ def read_config(path: str | os.PathLike, base: DatasetConfig | None = None) -> D
         [families.room]   n_objects = [4, 10]
         [families.table]  style = ["four_legs", "pedestal"]     # one drawn per scene
         [families.chair]  arms = [false, true]
+        [proportions.table] height = [0.5, 0.9]    # metres, replaces the generator's range
 
     Raises :class:`InputError` naming the file and the key for anything unknown or out of
     range.
@@ -277,6 +297,19 @@ def config_from_mapping(data: Any, source: str = "config",
             if "max_attempts" in body:
                 changes["max_attempts"] = _range(body["max_attempts"], f"{where} max_attempts",
                                                  int, 1, 1000)[0]
+        elif section == "proportions":
+            props = {}
+            for fam, fbody in body.items():
+                if not isinstance(fbody, Mapping):
+                    raise InputError(f"{where}.{fam}: expected a table of lengths")
+                names = proportion_names(fam)
+                for key, value in fbody.items():
+                    where_k = f"{source}: [proportions.{fam}] {key}"
+                    if key not in names:
+                        raise InputError(f"{where_k}: unknown length; {fam} has "
+                                         f"{', '.join(names)}")
+                    props.setdefault(fam, {})[key] = _range(value, where_k, float, 0.001, 10.0)
+            changes["proportions"] = props
         else:
             opts = {}
             for fam, fbody in body.items():
@@ -366,6 +399,8 @@ def plan(cfg: DatasetConfig) -> list[ScenePlan]:
                 opts[k] = v[int(rng.integers(len(v)))]
             else:
                 opts[k] = int(rng.integers(v[0], v[1] + 1))
+        if cfg.proportions.get(fam):
+            opts["proportions"] = {k: list(v) for k, v in sorted(cfg.proportions[fam].items())}
         out.append(ScenePlan(i, f"{fam}-{seed:06d}", fam, seed, split_of[i], views, scale, opts))
     return out
 

@@ -45,6 +45,14 @@ STACK_VARIANTS = ("column", "staggered", "pyramid", "piles")
 WIDE = objects.WIDE
 
 
+def ranges_for(builder: str, proportions: dict | None = None) -> dict:
+    """The proportion ranges of one builder: :data:`WIDE` with ``proportions`` (name ->
+    ``(lo, hi)`` metres, e.g. ``{"height": (0.5, 0.9)}`` for tables) put in its place."""
+    if not proportions:
+        return WIDE[builder]
+    return {**WIDE[builder], **{k: tuple(float(x) for x in v) for k, v in proportions.items()}}
+
+
 def _single(group, name: str, rng: np.random.Generator, yaw: bool = True) -> Arrangement:
     b = SceneBuilder()
     b.place(group, 0.0, 0.0, float(rng.uniform(-np.pi, np.pi)) if yaw else 0.0)
@@ -79,42 +87,45 @@ def make_stack(rng: np.random.Generator, n_boxes: int | None = None,
     return arr.with_(meta={**arr.meta, "variant": variant})
 
 
-def make_counterweight(rng: np.random.Generator) -> Arrangement:
+def make_counterweight(rng: np.random.Generator, proportions: dict | None = None) -> Arrangement:
     """A plank overhanging a block so far it tips alone, held down by a weight on its back end."""
-    return _single(objects.counterweight(rng, WIDE["counterweight"]), "counterweight", rng)
+    return _single(objects.counterweight(rng, ranges_for("counterweight", proportions)),
+                   "counterweight", rng)
 
 
-def make_bridge(rng: np.random.Generator) -> Arrangement:
+def make_bridge(rng: np.random.Generator, proportions: dict | None = None) -> Arrangement:
     """Pillars carrying one or two decks, maybe with boxes on the decks."""
-    return _single(objects.bridge(rng, WIDE["bridge"]), "bridge", rng)
+    return _single(objects.bridge(rng, ranges_for("bridge", proportions)), "bridge", rng)
 
 
 def make_table(rng: np.random.Generator, n_items: int | None = None,
-               style: str | None = None) -> Arrangement:
+               style: str | None = None, proportions: dict | None = None) -> Arrangement:
     """A table (top fused to four legs) with a few things on it.
 
     ``style``: ``three_legs`` or ``pedestal`` instead (:data:`objects.TABLE_STYLES`)."""
-    return _single(objects.table(rng, n_items, WIDE["table"], style), "table", rng)
+    return _single(objects.table(rng, n_items, ranges_for("table", proportions), style), "table", rng)
 
 
-def make_chair(rng: np.random.Generator, arms: bool | None = None) -> Arrangement:
+def make_chair(rng: np.random.Generator, arms: bool | None = None,
+               proportions: dict | None = None) -> Arrangement:
     """A chair: seat, four legs and a back, fused; ``arms=True``: with arm panels."""
-    return _single(objects.chair(rng, WIDE["chair"], bool(arms)), "chair", rng)
+    return _single(objects.chair(rng, ranges_for("chair", proportions), bool(arms)), "chair", rng)
 
 
-def make_shelf(rng: np.random.Generator) -> Arrangement:
+def make_shelf(rng: np.random.Generator, proportions: dict | None = None) -> Arrangement:
     """A free-standing bookshelf with books (some leaning) and boxes."""
-    return _single(objects.shelf(rng, WIDE["shelf"]), "shelf", rng)
+    return _single(objects.shelf(rng, ranges_for("shelf", proportions)), "shelf", rng)
 
 
-def make_desk(rng: np.random.Generator) -> Arrangement:
+def make_desk(rng: np.random.Generator, proportions: dict | None = None) -> Arrangement:
     """A desk with a monitor, a keyboard and a few things."""
-    return _single(objects.desk(rng, WIDE["desk"]), "desk", rng)
+    return _single(objects.desk(rng, ranges_for("desk", proportions)), "desk", rng)
 
 
-def make_sofa(rng: np.random.Generator, arms: bool | None = None) -> Arrangement:
+def make_sofa(rng: np.random.Generator, arms: bool | None = None,
+              proportions: dict | None = None) -> Arrangement:
     """A sofa of several fused cuboids with cushions; ``arms=False``: without arms."""
-    return _single(objects.sofa(rng, WIDE["sofa"], arms is not False), "sofa", rng)
+    return _single(objects.sofa(rng, ranges_for("sofa", proportions), arms is not False), "sofa", rng)
 
 
 def wall(k: int, point, normal) -> Support:
@@ -122,14 +133,14 @@ def wall(k: int, point, normal) -> Support:
     return Support(f"wall:{k}", np.asarray(point, float), np.asarray(normal, float))
 
 
-def make_wall_shelf(rng: np.random.Generator) -> Arrangement:
+def make_wall_shelf(rng: np.random.Generator, proportions: dict | None = None) -> Arrangement:
     """Boards hanging on wall ``wall:0`` (fused to it), with things on them."""
     from pipeline.model import ground
 
     yaw = float(rng.uniform(-np.pi, np.pi))
     w = wall(0, (0.0, 0.0, 0.0), (np.cos(yaw), np.sin(yaw), 0.0))
     b = SceneBuilder((ground(), w))
-    b.place_on_wall(objects.wall_shelf(rng, WIDE["wall_shelf"]), w, 0.0)
+    b.place_on_wall(objects.wall_shelf(rng, ranges_for("wall_shelf", proportions)), w, 0.0)
     return b.build({"family": "wall_shelf"})
 
 

@@ -19,14 +19,14 @@ from .demo import make_demo
 #: name -> (function, accepted option names)
 FAMILIES: dict[str, tuple[Callable[..., Arrangement], tuple[str, ...]]] = {
     "stack": (f.make_stack, ("n_boxes", "variant")),
-    "counterweight": (f.make_counterweight, ()),
-    "bridge": (f.make_bridge, ()),
-    "table": (f.make_table, ("n_items", "style")),
-    "chair": (f.make_chair, ("arms",)),
-    "shelf": (f.make_shelf, ()),
-    "wall_shelf": (f.make_wall_shelf, ()),
-    "desk": (f.make_desk, ()),
-    "sofa": (f.make_sofa, ("arms",)),
+    "counterweight": (f.make_counterweight, ("proportions",)),
+    "bridge": (f.make_bridge, ("proportions",)),
+    "table": (f.make_table, ("n_items", "style", "proportions")),
+    "chair": (f.make_chair, ("arms", "proportions")),
+    "shelf": (f.make_shelf, ("proportions",)),
+    "wall_shelf": (f.make_wall_shelf, ("proportions",)),
+    "desk": (f.make_desk, ("proportions",)),
+    "sofa": (f.make_sofa, ("arms", "proportions")),
     "room": (f.make_room, ("n_objects", "min_cuboids", "max_cuboids")),
     "demo": (make_demo, ()),
 }

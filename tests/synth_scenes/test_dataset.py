@@ -69,6 +69,27 @@ def test_style_choices_are_drawn_per_scene_and_made(tmp_path):
         ds.config_from_mapping({"families": {"chair": {"arms": ["yes"]}}}, "k.toml")
 
 
+def test_proportions_replace_the_generators_ranges(tmp_path):
+    (tmp_path / "k.yaml").write_text("proportions: {table: {height: [0.5, 0.52]}, "
+                                     "chair: {width: [0.55, 0.6]}}\n")
+    cfg = replace(ds.read_config(tmp_path / "k.yaml"), families=("table", "chair"), n=6)
+    from synth_scenes.registry import make
+
+    for sp in ds.plan(cfg):
+        arr = make(sp.family, np.random.default_rng(sp.seed), **sp.options)
+        own = [c for c in arr.cuboids if c.object == f"{sp.family}0"]
+        top = max(float(c.center[2] + c.size[2] / 2) for c in own)
+        if sp.family == "table":
+            assert 0.5 - 1e-9 <= top <= 0.52 + 1e-9
+    default = make("table", np.random.default_rng(0))
+    same = make("table", np.random.default_rng(0), proportions=None)
+    assert np.array_equal(default.centers, same.centers)
+    with pytest.raises(InputError, match=r"\[proportions.table\] legs: unknown length"):
+        ds.config_from_mapping({"proportions": {"table": {"legs": [1, 2]}}}, "k.yaml")
+    with pytest.raises(InputError, match=r"\[proportions.table\] height"):
+        ds.config_from_mapping({"proportions": {"table": {"height": [0.9, 0.5]}}}, "k.yaml")
+
+
 def test_deal_is_exact_for_any_n():
     for n in range(0, 60):
         counts = ds._deal(n, (0.8, 0.1, 0.1))
