@@ -305,8 +305,6 @@ drawn again.
 
 
 def _print_summary(out: Path, lines: list[dict], summary, stream) -> None:  # noqa: ANN001
-    from eval.runner import RunSummary  # noqa: F401 - the type of summary
-
     by_fam: dict[str, list[float]] = {}
     secs = {r.id: r.seconds for r in summary.records if r.ok and not r.resumed}
     for r in lines:

@@ -11,7 +11,6 @@ which a worker used to fail) must render.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import socket

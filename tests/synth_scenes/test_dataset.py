@@ -13,7 +13,7 @@ import pytest
 from eval.cli import main
 from pipeline.errors import InputError
 from synth_scenes import dataset as ds
-from synth_scenes.bop import export_bop, read_bop_scene
+from synth_scenes.bop import read_bop_scene
 
 
 def _tree(root: Path) -> dict[str, str]:
