@@ -16,6 +16,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from eval.commands.run import add_frame_arguments, frame_options
 from pipeline.outdir import out_arg
 
 EPILOG = """\
@@ -79,14 +80,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="an 'unseen retrieve' output folder for RESULT: a moved object with a "
                         "retrieved model is drawn as that model instead of its cuboids")
     p.add_argument("--json", action="store_true", help="print edit.json to stdout")
-    p.add_argument("--color", help="colour image file, as for 'unseen run'")
-    p.add_argument("--depth", help="depth file, as for 'unseen run'")
-    p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json, as for 'unseen run'")
-    p.add_argument("--depth-format", default="auto",
-                   choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
-                   help="depth encoding, as for 'unseen run'")
-    p.add_argument("--depth-scale", type=float, default=None,
-                   help="raw depth units per metre, as for 'unseen run'")
+    add_frame_arguments(p)  # INPUT in their help is SCAN here
 
 
 def operations(args: argparse.Namespace) -> list:
@@ -206,10 +200,7 @@ def run(args: argparse.Namespace) -> int:
     check_out(args.out)
     result_file = _result_file(args.result)
     arr = read_arrangement(result_file)
-    scan = load(args.scan, LoadOptions(color=args.color, depth=args.depth,
-                                       intrinsics=args.intrinsics,
-                                       depth_format=args.depth_format,
-                                       depth_scale=args.depth_scale))
+    scan = load(args.scan, LoadOptions(**frame_options(args)))
     view = view_of(scan, arr)
     params = EditParams(margin=float(args.margin), fill=args.fill, shadow=not args.no_shadow)
     meshes = read_retrieved(args.retrieved, arr) if args.retrieved else None

@@ -51,6 +51,25 @@ which way is up in the input frame: --up=-y (camera frames, y down), --up z (z-u
 """
 
 
+def add_frame_arguments(p: argparse.ArgumentParser) -> None:
+    """The flags that say how to read an RGB-D frame (shared with ``unseen edit``)."""
+    p.add_argument("--color", help="colour image file (absolute, or relative to INPUT: a scene "
+                                   "directory's scan/ first, then INPUT itself)")
+    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat), found like --color")
+    p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
+    p.add_argument("--depth-format", default="auto",
+                   choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
+                   help="depth encoding (auto: .dat -> float32-dat, else png / --depth-scale)")
+    p.add_argument("--depth-scale", type=float, default=None,
+                   help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
+
+
+def frame_options(args: argparse.Namespace) -> dict:
+    """The :class:`pipeline.run.LoadOptions` fields of :func:`add_frame_arguments`."""
+    return {"color": args.color, "depth": args.depth, "intrinsics": args.intrinsics,
+            "depth_format": args.depth_format, "depth_scale": args.depth_scale}
+
+
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("input", help="scene dir, RGB-D folder, depth file, or .ply/.pcd/.npz cloud")
     p.add_argument("--out", required=True, help="output folder (created)")
@@ -73,15 +92,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--disable", default="", metavar="PRIOR[,PRIOR...]",
                    help="switch priors off (see README, 'The method'): " + ", ".join(
                        _prior_names()))
-    p.add_argument("--color", help="colour image file (absolute, or relative to INPUT: a scene "
-                                   "directory's scan/ first, then INPUT itself)")
-    p.add_argument("--depth", help="depth file (16-bit PNG/PGM or float32 .dat), found like --color")
-    p.add_argument("--intrinsics", help="fx,fy,cx,cy or an intrinsics.json (default: INPUT's)")
-    p.add_argument("--depth-format", default="auto",
-                   choices=["auto", "png", "nyu-disparity", "sun-bitrot", "float32-dat"],
-                   help="depth encoding (auto: .dat -> float32-dat, else png / --depth-scale)")
-    p.add_argument("--depth-scale", type=float, default=None,
-                   help="raw depth units per metre for png (default 1000 = mm; TUM: 5000)")
+    add_frame_arguments(p)
     p.add_argument("--max-depth", type=float, default=None, help="ignore depth beyond this (m)")
     p.add_argument("--scale", type=float, default=None,
                    help="metres per input unit (0.001 for a cloud in mm); default: a bare cloud "
@@ -124,9 +135,7 @@ def config_from_args(args: argparse.Namespace):
     disabled = {n for n in str(getattr(args, "disable", "") or "").split(",") if n.strip()}
     if getattr(args, "no_symmetry", False):
         disabled.add("symmetry")
-    load = LoadOptions(color=args.color, depth=args.depth, intrinsics=args.intrinsics,
-                       depth_format=args.depth_format, depth_scale=args.depth_scale,
-                       up=args.up, max_depth=args.max_depth, instance=args.instance,
+    load = LoadOptions(**frame_options(args), up=args.up, max_depth=args.max_depth, instance=args.instance,
                        scribbles=args.scribbles,
                        floor_height=getattr(args, "floor_height", None),
                        pose=getattr(args, "pose", None), scale=getattr(args, "scale", None))

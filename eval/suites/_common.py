@@ -51,6 +51,16 @@ PAPER_TABLE3: dict[str, dict[str, float]] = {
 
 
 # ------------------------------------------------------------------------- running
+def suite_size(args: argparse.Namespace, default: int, quick_n: int = 1) -> tuple[Path, bool, int]:
+    """``(out, quick, n)`` of a suite run: the output folder (created), whether
+    ``--quick`` was given, and ``--n`` or else ``quick_n`` (quick) or ``default``."""
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    quick = bool(getattr(args, "quick", False))
+    n = args.n if getattr(args, "n", None) is not None else (quick_n if quick else default)
+    return out, quick, n
+
+
 def run_suite_tasks(args: argparse.Namespace, tasks: Iterable, label: str):
     """Run a suite's tasks with the scale-out options of ``unseen eval``.
 

@@ -252,13 +252,10 @@ def _row(label: str, recs: list[dict]) -> list:
 
 def run(args: argparse.Namespace) -> int:
     from eval.runner import Task
-    from eval.suites._common import plot_bars, run_suite_tasks, write_table
+    from eval.suites._common import plot_bars, run_suite_tasks, suite_size, write_table
     from eval.suites._scenes import failure_note, scene_seed
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    n = args.n if getattr(args, "n", None) is not None else (1 if quick else 4)
+    out, quick, n = suite_size(args, 4)
     fams = QUICK_FAMILIES if quick else FAMILIES
     tasks = []
     for fam in fams:

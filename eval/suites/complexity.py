@@ -46,14 +46,12 @@ def run(args: argparse.Namespace) -> int:
         pct,
         pr_cell,
         run_suite_tasks,
+        suite_size,
         write_table,
     )
     from eval.suites._scenes import failure_note, scene_seed, scene_task
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    n = args.n if getattr(args, "n", None) is not None else (1 if quick else DEFAULT_N)
+    out, quick, n = suite_size(args, DEFAULT_N)
     configs = QUICK_CONFIGS if quick else CONFIGS
     tasks = [Task(f"{label.replace(' ', '')}-{scene_seed(args.seed, i)}", scene_task,
                   {"family": fam, "seed": scene_seed(args.seed, i), "options": opts})

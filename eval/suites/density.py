@@ -23,7 +23,6 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -98,14 +97,12 @@ def run(args: argparse.Namespace) -> int:
         pct,
         plot_series,
         run_suite_tasks,
+        suite_size,
         write_table,
     )
     from eval.suites._scenes import f1_of, failure_note, scene_seed
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    n = args.n if getattr(args, "n", None) is not None else (1 if quick else 2)
+    out, quick, n = suite_size(args, 2)
     fams = QUICK_FAMILIES if quick else FAMILIES
     factors = QUICK_FACTORS if quick else FACTORS
     draws = QUICK_DRAWS if quick else DRAWS

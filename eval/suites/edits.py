@@ -180,13 +180,10 @@ def _finite_mean(vals) -> float:
 
 def run(args: argparse.Namespace) -> int:
     from eval.runner import Task
-    from eval.suites._common import plot_bars, run_suite_tasks, write_table
+    from eval.suites._common import plot_bars, run_suite_tasks, suite_size, write_table
     from eval.suites._scenes import failure_note, scene_seed
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    n = args.n if getattr(args, "n", None) is not None else (1 if quick else 2)
+    out, quick, n = suite_size(args, 2)
     fams = QUICK_FAMILIES if quick else FAMILIES
     examples = {"examples": str(out / "examples")}
     tasks = [Task("demo-table", edit_task, {"family": "demo", "seed": DEMO_SEED,

@@ -24,7 +24,6 @@ from __future__ import annotations
 import argparse
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -148,14 +147,12 @@ def run(args: argparse.Namespace) -> int:
         geometry_note,
         plot_series,
         run_suite_tasks,
+        suite_size,
         write_table,
     )
     from eval.suites._scenes import f1_of, failure_note, scene_seed
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    runs = args.n if getattr(args, "n", None) is not None else (QUICK_RUNS if quick else DEFAULT_RUNS)
+    out, quick, runs = suite_size(args, DEFAULT_RUNS, QUICK_RUNS)
     fams = QUICK_FAMILIES if quick else FAMILIES
     angles = QUICK_ANGLES if quick else ANGLES
     seed = scene_seed(args.seed, 0)

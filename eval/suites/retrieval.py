@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -269,17 +268,14 @@ def run(args: argparse.Namespace) -> int:
     import shutil
 
     from eval.runner import Task
-    from eval.suites._common import pct, plot_bars, run_suite_tasks, write_table
+    from eval.suites._common import pct, plot_bars, run_suite_tasks, suite_size, write_table
     from eval.suites._scenes import failure_note, scene_seed
     from pipeline import atomic
     from pipeline.progress import Progress
     from pipeline.retrieve import load_repository
     from synth_scenes.models import FURNITURE, make_models, write_repository
 
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    quick = bool(getattr(args, "quick", False))
-    n = args.n if getattr(args, "n", None) is not None else (1 if quick else N_SCENES)
+    out, quick, n = suite_size(args, N_SCENES)
     fams = QUICK_FAMILIES if quick else FAMILIES
     tasks = [Task(f"{fam}-{scene_seed(args.seed, i)}", scene_task,
                   {"family": fam, "seed": scene_seed(args.seed, i),
