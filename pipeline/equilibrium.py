@@ -127,6 +127,7 @@ class EquilibriumSystem:
     b: np.ndarray
     free: np.ndarray  # (F,) body index of each free body (row block)
     row_scale: np.ndarray  # (6F,) multiply residual rows to get N / N m
+    force_unit: float  # newtons per unit of lambda (see :func:`force_unit`)
     col_vertex: np.ndarray
     col_contact: np.ndarray
     col_dir: np.ndarray
@@ -282,18 +283,30 @@ def build_system(arr: Arrangement, contacts: ContactSet, bodies: Bodies, mu: flo
 
     ncol = len(col_vertex)
     W = bodies.mass * GRAVITY
+    unit = force_unit(W[free])
     # blocks[c, side] = the 6 scaled equilibrium coefficients of column c on body side
     # (both sides at once: side 0 is body a, pushed along +dir; side 1 is b, along -dir)
     blocks = np.zeros((ncol, 2, 6))
     if len(c_idx):
         du = np.where((s_idx == 0)[:, None], 1.0, -1.0) * dirs[c_idx]
         torque = cross(p[c_idx] - bodies.com[gu], du)
-        blocks[c_idx, s_idx, :3] = du / W[gu][:, None]
-        blocks[c_idx, s_idx, 3:] = torque / (W[gu] * bodies.size[gu])[:, None]
+        blocks[c_idx, s_idx, :3] = du * (unit / W[gu])[:, None]
+        blocks[c_idx, s_idx, 3:] = torque * (unit / (W[gu] * bodies.size[gu]))[:, None]
     Wf, WLf = W[free], W[free] * bodies.size[free]  # force rows in weights, torque rows
     row_scale = np.stack([Wf, Wf, Wf, WLf, WLf, WLf], axis=1).ravel()
-    return EquilibriumSystem(None, b, free, row_scale, col_vertex, m, dirs, contact_bodies, blocks,
-                             col_row, bodies.com[free, 2], dict(shared))
+    return EquilibriumSystem(None, b, free, row_scale, unit, col_vertex, m, dirs, contact_bodies,
+                             blocks, col_row, bodies.com[free, 2], dict(shared))
+
+
+def force_unit(weights: np.ndarray) -> float:
+    """The force that one unit of ``lambda`` stands for: the geometric mean of the free
+    bodies' weights (N; 1 when there are none).
+
+    Rows are balanced in units of each body's own weight; measuring the contact forces in
+    a weight of the same scene keeps the columns of ``D`` near 1 at any scale (at 100x a
+    column in newtons is about 1e-9 of its row, and NNLS then stops short)."""
+    w = weights[weights > 0]
+    return float(np.exp(np.log(w).mean())) if len(w) else 1.0
 
 
 #: topologies of recent systems (see :func:`build_system`), cleared beyond this many
@@ -335,7 +348,7 @@ def _topology(contacts: ContactSet, bodies: Bodies, G: int, active, ga, gb, no_f
            col_row, b)
     for a in out:
         a.setflags(write=False)
-    probe = EquilibriumSystem(None, b, free, None, col_vertex, m, None, contact_bodies, None,
+    probe = EquilibriumSystem(None, b, free, None, 1.0, col_vertex, m, None, contact_bodies, None,
                               col_row, None)
     shared = {"components": _components(probe), "grouping": _body_columns(probe),
               "half": probe.half_pyramid()}

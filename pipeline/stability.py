@@ -634,10 +634,12 @@ def glue_reasons(arr: Arrangement, mu: float = DEFAULT_MU, tilt_deg: float = 2.0
 
 
 def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
-    """The same system in newtons (rows multiplied back by their scale)."""
+    """The same system in newtons (rows multiplied back by their scale, columns by the
+    force unit, so that ``lambda`` is in newtons too)."""
     S = sp.diags(system.row_scale)
-    return replace(system, _D=(S @ system.D).tocsc(), b=system.b * system.row_scale,
-                   row_scale=np.ones_like(system.row_scale), blocks=None, _shared={})
+    return replace(system, _D=(S @ system.D / system.force_unit).tocsc(),
+                   b=system.b * system.row_scale, row_scale=np.ones_like(system.row_scale),
+                   force_unit=1.0, blocks=None, _shared={})
 
 
 __all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",

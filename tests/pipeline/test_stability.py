@@ -290,14 +290,10 @@ def test_verdict_invariant_to_scale_and_rigid_motion(scale, yaw, tx, ty, tz, fra
     assert r1.energy == pytest.approx(r0.energy, rel=1e-5, abs=1e-12)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "found by the property test above in a random run: the verdict holds (unstable) but "
-    "the residual energy is 0.0806 (NNLS) / 0.0906 (QP) against 0.00478 at 1x (0.00478 "
-    "again with ty = -1.0). The contacts are the same; the equilibrium matrix's contact "
-    "columns are in 1/weight (max 5e-10 at 100x against rows of 1), and scipy's nnls "
-    "stops at a point it reports as residual 0 that is 0.28 off. Fix: express contact "
-    "forces in units of a reference weight in pipeline.equilibrium.build_system"))
 def test_energy_invariant_at_100x_turned_half_a_turn_and_moved():
+    """A case the property test above once drew: at 100x the contact columns in newtons
+    were 1e-9 of their rows and NNLS stopped 0.28 short (E 0.0806 against 0.00478);
+    forces measured in a weight of the scene (``equilibrium.force_unit``) fix it."""
     base = overhang_scene(0.55)
     yaw, t = -np.pi, np.array([15.0, -1.00001, 0.0])
     Rz = np.array([[np.cos(yaw), -np.sin(yaw), 0], [np.sin(yaw), np.cos(yaw), 0], [0, 0, 1.0]])
