@@ -14,8 +14,10 @@ when the view looks along the row within ``along_deg``), each overlap is split a
 middle (no box left narrower than ``min_width``), and each box's face away from the
 camera goes back to the row's farthest or the board's back edge (``to_board``; a book
 is seen by its spine, and the board under it says how deep the shelf is), no box deeper
-than it is tall, as far as no view saw the added space empty (tried shorter in
-``steps``).
+than it is tall, as far as no view saw the added space empty and it enters no box
+outside the row (tried shorter in ``steps``).  Two members apart across the row whose
+extents along it overlap at all (``overlap``) cannot both reach the back edge: they are
+neighbours, set side by side.
 """
 
 from __future__ import annotations
@@ -24,7 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import box_samples, extent_along, is_upright, resting_on, turn_onto, turned_by
+from ..boxops import (
+    box_samples,
+    extent_along,
+    is_upright,
+    resting_on,
+    separations,
+    turn_onto,
+    turned_by,
+)
 from ..camera import invert, project, transform
 from ..model import Arrangement, Cuboid, ObservedBox
 from .base import Edit, Prior, principle_of
@@ -32,7 +42,7 @@ from .base import Edit, Prior, principle_of
 
 @dataclass(frozen=True)
 class Params:
-    overlap: float = 0.3  #: share of the narrower box two overlapping row members share
+    overlap: float = 0.0  #: share of the narrower box two overlapping row members share
     axes_deg: float = 15.0  #: degrees a member's yaw may differ from its support's
     rest_gap: float = 0.04  #: metres between a member's bottom and the support's top
     min_height_rel: float = 2.0  #: a member is this many times as tall as wide
@@ -122,6 +132,15 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
 
 
 _UP = np.array([0.0, 0.0, 1.0])
+
+
+def _enters(arr: Arrangement, cand: Cuboid, skip) -> bool:
+    """Whether ``cand`` enters (beyond contact tolerance) a cuboid of ``arr`` other
+    than those at the indices ``skip``."""
+    sep, tol = separations(arr, cand)
+    hit = sep < -tol
+    hit[list(skip)] = False
+    return bool(hit.any())
 
 
 def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
@@ -217,7 +236,8 @@ def apply(arr, evidence, p: Params, ctx):
                     if b1 - b0 <= 1e-4:
                         break
                     added = _with_range(new, s.center, Y, b0, b1)
-                    if not evidence.seen_empty(box_samples(added)):
+                    if not evidence.seen_empty(box_samples(added)) and \
+                            not _enters(arr, added, row):
                         new = _with_range(new, s.center, Y, min(y0, b0), max(y1, b1))
                         break
                 new_boxes.append(new)

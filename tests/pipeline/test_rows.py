@@ -146,3 +146,49 @@ def test_a_lone_book_seen_by_its_spine_goes_back_to_the_board_edge():
                                                                   shallow.size)), spine))
     out, _ = resolve_rows(arr2, views)
     np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, 0.0), atol=1e-12)
+
+
+def test_neighbours_overlapping_a_little_along_the_row_go_back_side_by_side():
+    """Two spines fitted one behind the other, overlapping by 2 mm along the board (a
+    tenth of the narrower): both cannot reach the back edge, so they are one row, the
+    overlap split at its middle and both as deep as the board."""
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    a = _book("a", -0.10, -0.08, -0.15, -0.14)
+    b = _book("b", -0.082, -0.06, -0.13, -0.12)
+    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)), a, b),
+                      (ground(),))
+    out, ids = resolve_rows(arr)
+    assert ids == ["a", "b"]
+    np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.081), atol=1e-12)
+    np.testing.assert_allclose(_x(out.cuboid("b")), (-0.081, -0.06), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, 0.1), atol=1e-12)  # H deep
+    np.testing.assert_allclose(_y(out.cuboid("b")), (-0.13, 0.12), atol=1e-12)
+    assert not find_contacts(out).penetrations
+
+
+def test_a_book_goes_back_only_as_far_as_it_enters_nothing_outside_its_row():
+    """A lone spine with a box standing behind it on the same board (too flat for a row):
+    the book goes back in steps, to the last one that leaves the box whole."""
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    spine = _book("book", -0.02, 0.02, -0.15, -0.14, 0.2)
+    crate = box("crate", (0.0, 0.05, TOP + 0.04), (0.2, 0.1, 0.08), object="crate")
+    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)), spine,
+                       crate.with_(observed=ObservedBox(crate.center, crate.size))),
+                      (ground(),))
+    out, ids = resolve_rows(arr)
+    assert ids == ["book"]
+    # as deep as tall ends at y = 0.05, inside the crate (from y = 0.0); of the steps
+    # 0.19 * j / 4 behind the spine's back at -0.14, j = 3 ends at 0.0025 (inside
+    # too) and j = 2 at -0.045
+    np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, -0.045), atol=1e-12)
+    assert not find_contacts(out).penetrations
+
+
+def test_books_go_back_after_the_board_under_them_is_deepened():
+    """The order of the priors: a board seen only by its front edge is deepened (and
+    joined to its side panels) before the books on it go back to its back edge."""
+    from pipeline.priors.registry import PRIORS
+
+    order = [p.name for p in PRIORS]
+    assert order.index("deepen") < order.index("rows")
+    assert order.index("join_parts") < order.index("rows")
