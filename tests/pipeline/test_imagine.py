@@ -963,19 +963,22 @@ def test_a_join_never_grows_through_space_seen_empty():
 
 def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
     # a desk's side panel stands 2 mm past the end of the top (fitted short) and 5.5 cm
-    # below it: neither growing the panel up nor the top down makes them meet.  One box
-    # reaches past the other (the panel up along the top's end, 8.5 cm: less volume
-    # than the top over the panel), the other meets it (the top 2 mm to the panel);
-    # a panel of another object there is left alone
+    # below it: neither growing the panel up nor the top down makes them meet.  The join
+    # with the least added volume pushes the panel up to the top's underside and its
+    # face the 2 mm gap faces over to the top's end (both pushes one candidate,
+    # pipeline.extend.CORNER_GAP); the top keeps its size; a panel of another object
+    # there is left alone
 
     top = box("top", (0, 0, 0.73), (1.2, 0.6, 0.03), object="desk")
     panel = box("panel", (-0.607, 0, 0.33), (0.01, 0.5, 0.66), object="desk")
     out, joined = join_parts(Arrangement((top, panel), (ground(),)))
     assert joined == ["top+panel"]
     t, p = out.cuboid("top"), out.cuboid("panel")
-    assert t.center[0] - t.size[0] / 2 == pytest.approx(-0.602, abs=1e-9)
-    assert t.center[0] + t.size[0] / 2 == pytest.approx(0.6, abs=1e-9)
-    assert p.center[2] + p.size[2] / 2 == pytest.approx(0.745, abs=1e-9)
+    np.testing.assert_allclose(t.size, top.size, atol=1e-12)
+    np.testing.assert_allclose(t.center, top.center, atol=1e-12)
+    assert p.center[0] + p.size[0] / 2 == pytest.approx(-0.6, abs=1e-9)  # 2 mm over
+    assert p.center[0] - p.size[0] / 2 == pytest.approx(-0.612, abs=1e-9)
+    assert p.center[2] + p.size[2] / 2 == pytest.approx(0.715, abs=1e-9)  # up 5.5 cm
     assert p.center[2] - p.size[2] / 2 == pytest.approx(0.0, abs=1e-9)
     cs = find_contacts(out)
     assert ("top", "panel") in cs.pairs and not cs.penetrations

@@ -730,3 +730,36 @@ def test_extensions_of_two_search_groups_never_enter_each_other():
                                  box("b", (0.3, 0.0, 0.5), (0.8, 0.2, 0.2))))
     out = apart(fitted, both)
     assert [c.size[0] for c in out.cuboids] == [0.2, 0.2]
+
+
+def _strip_and_box(gap: float):
+    """A desk top seen by its front edge (a 2 cm strip on a block) and a box fitted
+    behind it, its bottom ``gap`` above the strip's top."""
+    top = box("top", (0.0, -0.29, 0.745), (1.2, 0.02, 0.03), object="desk")
+    block = box("block", (0.0, -0.1, 0.365), (1.2, 0.4, 0.73), object="desk")
+    item = box("item", (0.0, 0.0, 0.76 + gap + 0.1), (0.2, 0.2, 0.2), object="item")
+    return Arrangement((top, block, item), (ground(),))
+
+
+def test_a_push_that_leaves_a_noise_gap_also_closes_it():
+    """The top's back face pushed to the box leaves them 7 mm apart vertically: the same
+    candidate also pushes the top's upper face by those 7 mm (two extensions, one
+    option), after which the two touch; 3 cm (beyond ``CORNER_GAP``) is no noise."""
+    from pipeline.extend import CORNER_GAP, apply_offsets, offsets_of
+
+    arr = _strip_and_box(0.007)
+    edge = next(e for e in candidate_edges(arr) if {e.a, e.b} == {0, 2})
+    two = [o for o in edge.options if len(o.extensions) == 2]
+    assert {o.type for o in two} == {"touch", "fixed"}
+    back, up = two[0].extensions
+    assert (back.box, back.axis, back.side) == (0, 1, 1)
+    assert back.length == pytest.approx(0.18, abs=1e-9)  # from y = -0.28 to -0.1
+    assert (up.box, up.axis, up.side, up.length) == (0, 2, 1, pytest.approx(0.007, abs=1e-9))
+    out = apply_offsets(arr, offsets_of(two[0].extensions, 3))
+    from pipeline.contacts import find_contacts
+
+    cs = find_contacts(out)
+    assert ("top", "item") in cs.pairs and not cs.penetrations
+    assert CORNER_GAP < 0.03
+    far = _strip_and_box(0.03)
+    assert not any(len(o.extensions) == 2 for e in candidate_edges(far) for o in e.options)
