@@ -34,7 +34,7 @@ sysdeps:
 	fi
 
 test: install
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 	out=$$(mktemp -d) && $(VENV)/bin/unseen eval regression --out $$out
 
 
