@@ -216,6 +216,15 @@ def _overhangs(C, R, S, corners, i, j, axis, tol, max_ext) -> dict[int, list[Ext
     return out
 
 
+def _touches(C, R, S, a: int, off: np.ndarray, b: int, tol: float) -> bool:
+    """Whether box ``a`` with its faces pushed out by ``off (3, 2)`` touches box ``b``
+    (within ``tol``)."""
+    c = C[a] + R[a] @ ((off[:, 1] - off[:, 0]) / 2.0)
+    sep, _, _ = sat_separation(c[None], R[a][None], ((S[a] + off.sum(axis=1)) / 2)[None],
+                               C[b][None], R[b][None], (S[b] / 2)[None], np.array([tol]))
+    return abs(float(sep[0])) <= tol
+
+
 def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
                overhang: bool = False) -> list[Edge]:
     """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs
@@ -279,18 +288,17 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
         near = ~good & (s2 > tol[P]) & (s2 <= CORNER_GAP)
         for n in np.nonzero(near)[0].tolist():
             p, _, ax, side, length = exts[n]
-            dots = R[src[n]].T @ n2[n]
+            a, b = int(src[n]), int(dst[n])
+            dots = R[a].T @ n2[n]
             ax2 = int(np.argmax(np.abs(dots)))
             if ax2 == ax or abs(dots[ax2]) < CORNER_COS:
                 continue
-            second = Extension(int(src[n]), ax2, int(dots[ax2] > 0), float(s2[n]))
-            off2 = off[n].copy()
+            second = Extension(a, ax2, int(dots[ax2] > 0), float(s2[n]))
+            off2 = np.zeros((3, 2))
+            off2[ax, side] = length
             off2[ax2, second.side] += second.length
-            c3 = C[src[n]] + R[src[n]] @ ((off2[:, 1] - off2[:, 0]) / 2.0)
-            s3, _, _ = sat_separation(c3[None], R[src[n]][None], ((S[src[n]] + off2.sum(axis=1)) / 2)[None],
-                                      C[dst[n]][None], R[dst[n]][None], H[dst[n]][None], tol[[p]])
-            if abs(float(s3[0])) <= tol[p]:
-                by_pair.setdefault(p, []).append((Extension(int(src[n]), ax, side, length), second))
+            if _touches(C, R, S, a, off2, b, tol[p]):
+                by_pair.setdefault(p, []).append((Extension(a, ax, side, length), second))
     over: dict[int, list[Extension]] = {}
     if overhang and touching.any():
         objects = [c.object for c in arr.cuboids]

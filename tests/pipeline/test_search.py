@@ -745,21 +745,24 @@ def test_a_push_that_leaves_a_noise_gap_also_closes_it():
     """The top's back face pushed to the box leaves them 7 mm apart vertically: the same
     candidate also pushes the top's upper face by those 7 mm (two extensions, one
     option), after which the two touch; 3 cm (beyond ``CORNER_GAP``) is no noise."""
+    from pipeline.contacts import find_contacts
     from pipeline.extend import CORNER_GAP, apply_offsets, offsets_of
 
     arr = _strip_and_box(0.007)
     edge = next(e for e in candidate_edges(arr) if {e.a, e.b} == {0, 2})
-    two = [o for o in edge.options if len(o.extensions) == 2]
-    assert {o.type for o in two} == {"touch", "fixed"}
+    two = [o for o in edge.options if len(o.extensions) == 2 and o.extensions[0].box == 0]
+    assert sorted(o.type for o in two) == ["fixed", "touch"]
     back, up = two[0].extensions
     assert (back.box, back.axis, back.side) == (0, 1, 1)
     assert back.length == pytest.approx(0.18, abs=1e-9)  # from y = -0.28 to -0.1
-    assert (up.box, up.axis, up.side, up.length) == (0, 2, 1, pytest.approx(0.007, abs=1e-9))
+    assert (up.box, up.axis, up.side) == (0, 2, 1)
+    assert up.length == pytest.approx(0.007, abs=1e-9)
     out = apply_offsets(arr, offsets_of(two[0].extensions, 3))
-    from pipeline.contacts import find_contacts
-
     cs = find_contacts(out)
     assert ("top", "item") in cs.pairs and not cs.penetrations
+    # the box's own option: its front face pushed to the top and its bottom down to it
+    mine = [o for o in edge.options if len(o.extensions) == 2 and o.extensions[0].box == 2]
+    assert {(x.axis, x.side) for x in mine[0].extensions} == {(1, 0), (2, 0)}
     assert CORNER_GAP < 0.03
     far = _strip_and_box(0.03)
     assert not any(len(o.extensions) == 2 for e in candidate_edges(far) for o in e.options)
