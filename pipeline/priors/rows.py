@@ -15,7 +15,8 @@ middle (no box left narrower than ``min_width``), and each box's face away from 
 camera goes back to the row's farthest or the board's back edge (``to_board``; a book
 is seen by its spine, and the board under it says how deep the shelf is), no box deeper
 than it is tall, as far as no view saw the added space empty and it enters no box
-outside the row (tried shorter in ``steps``).  Two members apart across the row whose
+outside the row but its board (tried shorter in ``steps``; a spine fitted a few
+millimetres into its board still goes back).  Two members apart across the row whose
 extents along it overlap at all (``overlap``) cannot both reach the back edge: they are
 neighbours, set side by side.
 """
@@ -237,7 +238,7 @@ def apply(arr, evidence, p: Params, ctx):
                         break
                     added = _with_range(new, s.center, Y, b0, b1)
                     if not evidence.seen_empty(box_samples(added)) and \
-                            not _enters(arr, added, row):
+                            not _enters(arr, added, row + [arr.index[s.id]]):
                         new = _with_range(new, s.center, Y, min(y0, b0), max(y1, b1))
                         break
                 new_boxes.append(new)

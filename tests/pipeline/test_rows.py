@@ -192,3 +192,18 @@ def test_books_go_back_after_the_board_under_them_is_deepened():
     order = [p.name for p in PRIORS]
     assert order.index("deepen") < order.index("rows")
     assert order.index("join_parts") < order.index("rows")
+
+
+def test_a_book_sunk_a_little_into_its_board_still_goes_back():
+    """A spine fitted 3 mm into the board under it (noise): the slab behind it lies on
+    that board, which is the book's support and not a box it would enter."""
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    spine = _book("book", -0.02, 0.02, -0.15, -0.14, 0.2)
+    sunk = spine.with_(center=spine.center - np.array([0.0, 0.0, 0.003]),
+                       observed=ObservedBox(spine.center - np.array([0.0, 0.0, 0.003]),
+                                            spine.size))
+    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)), sunk),
+                      (ground(),))
+    out, ids = resolve_rows(arr)
+    assert ids == ["book"]
+    np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, 0.05), atol=1e-12)
