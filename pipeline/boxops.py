@@ -266,12 +266,15 @@ def separations(arr: Arrangement, cand: Cuboid) -> tuple[np.ndarray, np.ndarray]
     return sep, tol
 
 
-def is_free(arr: Arrangement, cand: Cuboid) -> bool:
-    """Whether ``cand`` enters none of the cuboids of ``arr`` (beyond contact tolerance)."""
+def is_free(arr: Arrangement, cand: Cuboid, skip=()) -> bool:
+    """Whether ``cand`` enters none of the cuboids of ``arr`` (beyond contact tolerance)
+    but those at the indices ``skip``."""
     if not arr.cuboids:
         return True
     sep, tol = separations(arr, cand)
-    return bool(np.all(sep >= -tol))
+    hit = sep < -tol
+    hit[list(skip)] = False
+    return not bool(hit.any())
 
 
 def box_samples(c: Cuboid, n: int = 5) -> np.ndarray:

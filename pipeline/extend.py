@@ -216,15 +216,6 @@ def _overhangs(C, R, S, corners, i, j, axis, tol, max_ext) -> dict[int, list[Ext
     return out
 
 
-def _touches(C, R, S, a: int, off: np.ndarray, b: int, tol: float) -> bool:
-    """Whether box ``a`` with its faces pushed out by ``off (3, 2)`` touches box ``b``
-    (within ``tol``)."""
-    c = C[a] + R[a] @ ((off[:, 1] - off[:, 0]) / 2.0)
-    sep, _, _ = sat_separation(c[None], R[a][None], ((S[a] + off.sum(axis=1)) / 2)[None],
-                               C[b][None], R[b][None], (S[b] / 2)[None], np.array([tol]))
-    return abs(float(sep[0])) <= tol
-
-
 def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
                overhang: bool = False) -> list[Edge]:
     """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs
@@ -274,9 +265,17 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
         dst = np.where(which == 0, j[P], i[P])
         off = np.zeros((len(exts), 3, 2))
         off[np.arange(len(exts)), [e[2] for e in exts], [e[3] for e in exts]] = [e[4] for e in exts]
-        size2 = S[src] + off.sum(axis=2)
-        cen2 = C[src] + np.einsum("pij,pj->pi", R[src], (off[:, :, 1] - off[:, :, 0]) / 2.0)
-        s2, n2, _ = sat_separation(cen2, R[src], size2 / 2, C[dst], R[dst], H[dst], tol[P])
+        def separation(q: np.ndarray, off_q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """Separation (and its axis) of extension ``q``'s box, its faces pushed out by
+            ``off_q``, from the box it is to touch."""
+            a = src[q]
+            cen = C[a] + np.einsum("pij,pj->pi", R[a], (off_q[:, :, 1] - off_q[:, :, 0]) / 2.0)
+            sep, axis, _ = sat_separation(cen, R[a], (S[a] + off_q.sum(axis=2)) / 2,
+                                          C[dst[q]], R[dst[q]], H[dst[q]], tol[P[q]])
+            return sep, axis
+
+        every = np.arange(len(exts))
+        s2, n2 = separation(every, off)
         good = np.abs(s2) <= tol[P]
         for n, (p, _, ax, side, length) in enumerate(exts):
             if good[n]:
@@ -285,20 +284,23 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
         # sensor noise apart (a desk top seen by its front edge pushed back under the
         # boxes on it, their bottoms fitted a few millimetres above its top) closes that
         # gap with the face it faces: both pushes together are one option
-        near = ~good & (s2 > tol[P]) & (s2 <= CORNER_GAP)
-        for n in np.nonzero(near)[0].tolist():
-            p, _, ax, side, length = exts[n]
-            a, b = int(src[n]), int(dst[n])
-            dots = R[a].T @ n2[n]
-            ax2 = int(np.argmax(np.abs(dots)))
-            if ax2 == ax or abs(dots[ax2]) < CORNER_COS:
-                continue
-            second = Extension(a, ax2, int(dots[ax2] > 0), float(s2[n]))
-            off2 = np.zeros((3, 2))
-            off2[ax, side] = length
-            off2[ax2, second.side] += second.length
-            if _touches(C, R, S, a, off2, b, tol[p]):
-                by_pair.setdefault(p, []).append((Extension(a, ax, side, length), second))
+        q = np.nonzero(~good & (s2 > tol[P]) & (s2 <= CORNER_GAP))[0]
+        dots = np.einsum("qji,qj->qi", R[src[q]], n2[q])  # the gap's axis in the box's axes
+        ax2 = np.argmax(np.abs(dots), axis=1)
+        cos2 = dots[np.arange(len(q)), ax2]
+        first = np.array([exts[n][2] for n in q.tolist()], int)
+        keep = (ax2 != first) & (np.abs(cos2) >= CORNER_COS)
+        q, ax2, side2 = q[keep], ax2[keep], (cos2[keep] > 0).astype(int)
+        off2 = off[q].copy()
+        off2[np.arange(len(q)), ax2, side2] = s2[q]
+        s3, _ = separation(q, off2)
+        for m, n in enumerate(q.tolist()):
+            if abs(s3[m]) <= tol[P[n]]:
+                p, _, ax, side, length = exts[n]
+                a = int(src[n])
+                by_pair.setdefault(p, []).append(
+                    (Extension(a, ax, side, length),
+                     Extension(a, int(ax2[m]), int(side2[m]), float(s2[n]))))
     over: dict[int, list[Extension]] = {}
     if overhang and touching.any():
         objects = [c.object for c in arr.cuboids]

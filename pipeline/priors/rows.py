@@ -30,9 +30,9 @@ import numpy as np
 from ..boxops import (
     box_samples,
     extent_along,
+    is_free,
     is_upright,
     resting_on,
-    separations,
     turn_onto,
     turned_by,
 )
@@ -135,15 +135,6 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def _enters(arr: Arrangement, cand: Cuboid, skip) -> bool:
-    """Whether ``cand`` enters (beyond contact tolerance) a cuboid of ``arr`` other
-    than those at the indices ``skip``."""
-    sep, tol = separations(arr, cand)
-    hit = sep < -tol
-    hit[list(skip)] = False
-    return bool(hit.any())
-
-
 def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
@@ -238,7 +229,7 @@ def apply(arr, evidence, p: Params, ctx):
                         break
                     added = _with_range(new, s.center, Y, b0, b1)
                     if not evidence.seen_empty(box_samples(added)) and \
-                            not _enters(arr, added, row + [arr.index[s.id]]):
+                            is_free(arr, added, skip=row + [arr.index[s.id]]):
                         new = _with_range(new, s.center, Y, min(y0, b0), max(y1, b1))
                         break
                 new_boxes.append(new)
