@@ -375,14 +375,16 @@ def edge_alignments(a: Parts, b: Parts, pairs, dz: float) -> np.ndarray:
 
 
 def score_alignments(Ts: np.ndarray, template_points: np.ndarray, partial_points: np.ndarray,
-                     cap: float) -> np.ndarray:
+                     cap: float, tree=None) -> np.ndarray:
     """(n,) mean distance (each truncated at ``cap``) from the partial points to the
-    template points moved by each ``Ts[k]`` (template -> partial)."""
+    template points moved by each ``Ts[k]`` (template -> partial).  ``tree``: a
+    ``cKDTree`` of ``template_points`` already built (one is built otherwise)."""
     from scipy.spatial import cKDTree
 
     if not len(Ts):
         return np.zeros(0)
-    tree = cKDTree(template_points)
+    if tree is None:
+        tree = cKDTree(template_points)
     R = Ts[:, :3, :3]
     t = Ts[:, :3, 3]
     # partial points in the template frame: R^T (p - t), every candidate at once
@@ -449,10 +451,14 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
     if not len(Ts):  # nothing matched: centroids on each other, no turn
         t = partial_points.mean(0) - template_points.mean(0)
         Ts = upright_transform(0.0, [t[0], t[1], dz])[None]
-    scores = score_alignments(Ts, template_points, sample, cfg.score_cap)
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(template_points)
+    scores = score_alignments(Ts, template_points, sample, cfg.score_cap, tree)
     best = int(np.argmin(scores))
     T_icp, icp = icp_refine(Ts[best], template_points, partial_points, cfg)
-    icp_score = float(score_alignments(T_icp[None], template_points, sample, cfg.score_cap)[0])
+    icp_score = float(score_alignments(T_icp[None], template_points, sample, cfg.score_cap,
+                                       tree)[0])
     # ICP is kept unless it moved the points away from the template (by the same score)
     icp["kept"] = bool(icp_score <= scores[best] + 1e-9)
     T = T_icp if icp["kept"] else Ts[best]

@@ -153,7 +153,7 @@ def completion_task(rng: np.random.Generator, family: str, seed: int, template_s
                     template_views: int = TEMPLATE_VIEWS, pictures: str | None = None
                     ) -> dict:
     """One pair: synthesize, run both, complete (parts and rigid), measure."""
-    from eval.suites._scenes import make_scene, run_config, scratch
+    from eval.suites._scenes import make_scene, run_dir, scratch
     from pipeline.complete import (
         CompleteConfig,
         complete,
@@ -161,25 +161,26 @@ def completion_task(rng: np.random.Generator, family: str, seed: int, template_s
         object_points,
         parts_of,
     )
-    from pipeline.run import run_scan
 
     with scratch() as tmp:
         pm = make_scene(family, seed, tmp / "partial")
         tm = make_scene(family, template_seed, tmp / "template", views=template_views,
                         view_ranges=TEMPLATE_RANGES)
-        cfg = run_config()
-        partial = run_scan(pm.path, cfg)
-        template = run_scan(tm.path, cfg)
+        partial = run_dir(pm.path)
+        template = run_dir(tm.path)
     truth, t_truth = pm.truth.arrangement, tm.truth.arrangement
     rec: dict = {"family": family, "seed": int(seed), "template_seed": int(template_seed)}
+    truth_of: dict = {}
     for mode in ("auto", "parts", "rigid"):
         c = complete(partial, template, CompleteConfig(transfer=mode),
                      rng=np.random.default_rng(seed))
         name = c.objects[1]
         if not any(cb.object == name for cb in truth.cuboids):
             raise RuntimeError(f"{family} {seed}: object {name!r} is not in the truth")
-        samples = surface_samples(truth, name, floor=floor_height(truth))
-        tparts = parts_of([cb for cb in truth.cuboids if cb.object == name])
+        if name not in truth_of:  # the same object in every mode: its surface once
+            truth_of[name] = (surface_samples(truth, name, floor=floor_height(truth)),
+                              parts_of([cb for cb in truth.cuboids if cb.object == name]))
+        samples, tparts = truth_of[name]
         if mode == "auto":
             rec["chosen"] = c.transfer
             rec["transfer_scores"] = c.alignment.get("transfer_scores", {})
