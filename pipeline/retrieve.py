@@ -53,8 +53,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .camera import transform
 from .errors import InputError
-from .model import Arrangement, rotation_about_z
+from .model import Arrangement, box_corners, rotation_about_z
 
 #: Evenly spread yaws sampled per model (15 degree steps).
 YAWS = 24
@@ -292,10 +293,8 @@ class Structure:
                    np.array([c.size for c in cuboids], float).reshape(-1, 3))
 
     def corners(self) -> np.ndarray:
-        """(8k, 3) all corners."""
-        signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-        local = signs[None] * self.sizes[:, None] / 2
-        return (np.einsum("kij,knj->kni", self.rotations, local) + self.centers[:, None]).reshape(-1, 3)
+        """(8k, 3) all corners (:func:`pipeline.model.box_corners`)."""
+        return box_corners(self.centers, self.rotations, self.sizes).reshape(-1, 3)
 
     def diagonal(self) -> float:
         c = self.corners()
@@ -522,25 +521,31 @@ def _upright(T: np.ndarray, about: np.ndarray) -> np.ndarray:
     return C @ U @ np.linalg.inv(C)
 
 
-def _surface_world(model: RepoModel, M: np.ndarray, dense: np.ndarray) -> np.ndarray:
-    return dense @ M[:3, :3].T + M[:3, 3]
+def icp_samples(model: RepoModel, points: np.ndarray, rng: np.random.Generator
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """What ICP and its fitness use: at most ``ICP_POINTS`` of the observed ``points``
+    and 4000 samples of the model's surface (in its unit box), drawn from ``rng``."""
+    pts = np.asarray(points, float)
+    if len(pts) > ICP_POINTS:
+        pts = pts[np.sort(rng.choice(len(pts), ICP_POINTS, replace=False))]
+    dense = sample_surface((model.vertices - model.lo) / model.extent, model.faces, 4000, rng)
+    return pts, dense
 
 
 def icp_refine(model: RepoModel, M: np.ndarray, points: np.ndarray, diagonal: float,
-               rng: np.random.Generator) -> tuple[np.ndarray, float, float]:
+               rng: np.random.Generator, samples: tuple[np.ndarray, np.ndarray] | None = None
+               ) -> tuple[np.ndarray, float, float]:
     """Register the observed ``points`` to the placed model (Open3D point-to-point ICP,
     ``open3d.pipelines.registration.registration_icp``).
 
     Returns the refined placement (the upright part of the ICP motion, about the model's
     centre, applied to the model), and the fitness (share of ``points`` within the
-    correspondence distance of the model) and RMSE of those (m) at the refined pose."""
+    correspondence distance of the model) and RMSE of those (m) at the refined pose.
+    ``samples``: :func:`icp_samples` already drawn (else drawn from ``rng``)."""
     import open3d as o3d
 
-    pts = np.asarray(points, float)
-    if len(pts) > ICP_POINTS:
-        pts = pts[np.sort(rng.choice(len(pts), ICP_POINTS, replace=False))]
-    dense = sample_surface((model.vertices - model.lo) / model.extent, model.faces, 4000, rng)
-    target = _surface_world(model, M, dense)
+    pts, dense = samples if samples is not None else icp_samples(model, points, rng)
+    target = transform(M, dense)
     src = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
     tgt = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(target))
     dist = max(ICP_MIN, ICP_REL * diagonal)
@@ -550,7 +555,7 @@ def icp_refine(model: RepoModel, M: np.ndarray, points: np.ndarray, diagonal: fl
                                reg.ICPConvergenceCriteria(max_iteration=30))
     U = _upright(np.linalg.inv(np.asarray(res.transformation)), target.mean(axis=0))
     M2 = U @ M
-    fitness, rmse = _fitness(_surface_world(model, M2, dense), pts, dist)
+    fitness, rmse = _fitness(transform(M2, dense), pts, dist)
     return M2, fitness, rmse
 
 
@@ -564,13 +569,12 @@ def _fitness(surface: np.ndarray, points: np.ndarray, dist: float) -> tuple[floa
 
 
 def fitness(model: RepoModel, M: np.ndarray, points: np.ndarray, diagonal: float,
-            rng: np.random.Generator) -> float:
-    """Share of ``points`` within the ICP correspondence distance of the placed model."""
-    pts = np.asarray(points, float)
-    if len(pts) > ICP_POINTS:
-        pts = pts[np.sort(rng.choice(len(pts), ICP_POINTS, replace=False))]
-    dense = sample_surface((model.vertices - model.lo) / model.extent, model.faces, 4000, rng)
-    return _fitness(_surface_world(model, M, dense), pts, max(ICP_MIN, ICP_REL * diagonal))[0]
+            rng: np.random.Generator, samples: tuple[np.ndarray, np.ndarray] | None = None
+            ) -> float:
+    """Share of ``points`` within the ICP correspondence distance of the placed model
+    (``samples``: as for :func:`icp_refine`)."""
+    pts, dense = samples if samples is not None else icp_samples(model, points, rng)
+    return _fitness(transform(M, dense), pts, max(ICP_MIN, ICP_REL * diagonal))[0]
 
 
 def retrieve_object(name: str, cuboids, models: tuple[RepoModel, ...],
@@ -605,9 +609,10 @@ def retrieve_object(name: str, cuboids, models: tuple[RepoModel, ...],
             icp = None
             f = 0.0
             if pts is not None:
-                fit0 = fitness(models[i], M, pts, diag, np.random.default_rng(config.seed))
-                M2, fit2, rmse = icp_refine(models[i], M, pts, diag,
-                                            np.random.default_rng(config.seed))
+                # (the same draws for both, as each once drew them from a fresh rng)
+                drawn = icp_samples(models[i], pts, np.random.default_rng(config.seed))
+                fit0 = fitness(models[i], M, pts, diag, None, drawn)
+                M2, fit2, rmse = icp_refine(models[i], M, pts, diag, None, drawn)
                 a2, b2 = score(models[i], st, M2[None], interior, tol)
                 applied = bool(a2[0] + b2[0] >= a + b - ICP_SLACK and fit2 >= fit0)
                 icp = {"fitness_before": round(fit0, 6), "fitness": round(fit2, 6),
