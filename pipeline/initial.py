@@ -95,6 +95,17 @@ def _unreliable(view: ScanInput) -> np.ndarray:
     return fly | _mask_border(view)
 
 
+def nan_median_last(a: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(a, axis=-1)`` (NaN where a row has no number), without the masked
+    arrays numpy falls back on for short rows: the sorted row's middle value, or the
+    mean of its two middle values."""
+    s = np.sort(a, axis=-1)  # NaNs sort last
+    n = np.isfinite(s).sum(axis=-1)
+    lo = np.take_along_axis(s, np.maximum(n - 1, 0)[..., None] // 2, axis=-1)[..., 0]
+    hi = np.take_along_axis(s, (n // 2)[..., None], axis=-1)[..., 0]
+    return np.where(n > 0, np.where(n % 2 == 1, lo, (lo + hi) / 2), np.nan)
+
+
 #: Half width (pixels) of the window of :func:`segment_median_depth`.
 DEPTH_MEDIAN_RADIUS = 2
 
@@ -123,17 +134,13 @@ def segment_median_depth(depth: np.ndarray, label: np.ndarray,
 
     offsets = [(dv, du) for dv in range(-r, r + 1) for du in range(-r, r + 1)
                if (dv, du) > (0, 0)]
-    stack = np.full((len(offsets) + 1, H, W), np.nan)
-    stack[0] = np.where(depth > 0, depth, np.nan)
+    stack = np.full((H, W, len(offsets) + 1), np.nan)
+    stack[..., 0] = np.where(depth > 0, depth, np.nan)
     for n, (dv, du) in enumerate(offsets, start=1):
         a, ok_a = shifted(dv, du)
         b, ok_b = shifted(-dv, -du)
-        stack[n] = np.where(ok_a & ok_b, 0.5 * (a + b), np.nan)
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        med = np.nanmedian(stack, axis=0)
+        stack[..., n] = np.where(ok_a & ok_b, 0.5 * (a + b), np.nan)
+    med = nan_median_last(stack)
     keep = (label >= 0) & (depth > 0) & np.isfinite(med)
     return np.where(keep, med, depth)
 

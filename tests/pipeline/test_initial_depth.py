@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.initial import segment_median_depth
+from pipeline.initial import nan_median_last, segment_median_depth
 
 
 def _plane(H=60, W=80, z0=3.0, slope=0.02):
@@ -47,3 +47,21 @@ def test_segments_do_not_mix_and_pixels_without_reading_or_label_stay():
     assert out[5, 5] == 0.0 and out[50, 60] == depth[50, 60]
     a, b = out[:, :40], out[:, 40:]
     assert a[a > 0].max() < 2.1 and b.min() > 3.4  # nothing of one segment in the other
+
+
+def test_nan_median_matches_numpy_on_rows_with_any_number_of_readings():
+    import warnings
+
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(40, 30, 13))
+    a[rng.random(a.shape) < 0.5] = np.nan
+    a[0, 0] = np.nan  # no reading at all
+    a[1, 1, 1:] = np.nan  # one
+    a[2, 2, 2:] = np.nan  # two: the mean of both
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        want = np.nanmedian(a, axis=-1)
+    got = nan_median_last(a)
+    assert np.array_equal(got, want, equal_nan=True)
+    assert np.isnan(got[0, 0]) and got[1, 1] == a[1, 1, 0]
+    assert got[2, 2] == (a[2, 2, 0] + a[2, 2, 1]) / 2
