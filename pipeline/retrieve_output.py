@@ -12,8 +12,8 @@ from .camera import Intrinsics, look_at
 from .model import Arrangement
 from .retrieve import ObjectRetrieval, RepoModel, placed_mesh
 
-#: Colour per kind (RGB), as the repository's files (``synth_scenes.models.KIND_COLORS``);
-#: kinds not listed get grey.
+#: Colour per kind (RGB), also of the repository's files (``unseen models make``); kinds
+#: not listed get grey.
 KIND_RGB = {"table": (166, 118, 72), "chair": (214, 96, 77), "shelf": (120, 160, 90),
             "desk": (90, 120, 170), "sofa": (150, 100, 170), "monitor": (70, 70, 80),
             "box": (200, 170, 110)}

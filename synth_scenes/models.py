@@ -47,6 +47,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pipeline.retrieve_output import KIND_RGB, Y_UP_FROM_Z_UP
+
 from .objects import WIDE
 
 #: Variants per kind, in the order :func:`make_repository` cycles through them.
@@ -75,14 +77,10 @@ FURNITURE = ("table", "chair", "shelf", "desk", "sofa", "monitor")
 N_PER_KIND = 12
 #: Segments of a round part's circle.
 SECTIONS = 20
-#: The glTF frame from ours: z up -> y up (x stays, y' = z, z' = -y).
-Y_UP_FROM_Z_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 1]])
-#: A colour per kind (RGBA 0-255), so a picture of retrieved models tells kinds apart.
-KIND_COLORS: dict[str, tuple[int, int, int, int]] = {
-    "table": (166, 118, 72, 255), "chair": (214, 96, 77, 255), "shelf": (120, 160, 90, 255),
-    "desk": (90, 120, 170, 255), "sofa": (150, 100, 170, 255), "monitor": (70, 70, 80, 255),
-    "box": (200, 170, 110, 255),
-}
+#: A colour per kind (RGBA 0-255, the retrieval pictures' colours), so a picture of
+#: retrieved models tells kinds apart.
+KIND_COLORS: dict[str, tuple[int, int, int, int]] = {k: (*rgb, 255)
+                                                      for k, rgb in KIND_RGB.items()}
 
 
 @dataclass(frozen=True)
