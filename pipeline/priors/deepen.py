@@ -25,6 +25,12 @@ extent across the joint stops short of the other's on the side away from the cam
 more than ``joined_min`` is pushed back to the other's far face there, as far as no view
 saw the added space empty.  A leg under a top or a box on a board is not joined side by
 side; a rail between two legs is no wider across the joint than they are.
+
+Furniture repeats its boards: two flat parts of one object (upright, thinner than half
+their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
+above one another are as deep as each other, so the shallower one is pushed back to the
+deeper one's far face in the same way (a shelf's lower boards half hidden behind its
+books, its top board seen edge-on at eye height).
 """
 
 from __future__ import annotations
@@ -67,6 +73,8 @@ class Params:
     joined_gap: float = 0.02  #: metres between the faces of parts joined side by side
     joined_share: float = 0.5  #: share of the lower part's height the two share
     joined_min: float = 0.03  #: metres one part must stop short of the other
+    twin_size_rel: float = 0.1  #: relative agreement of two twin boards' lengths
+    twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
 
 
 def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
@@ -139,19 +147,67 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     return sorted(out, key=lambda t: -t[3])
 
 
+def board_axes(c) -> tuple[int, int] | None:
+    """(long axis, depth axis) of an upright box flatter than half its length (a board,
+    a top); None for any other box."""
+    if not is_upright(c):
+        return None
+    h = horizontal_axes(c)
+    if len(h) != 2:
+        return None
+    long, depth = sorted(h, key=lambda a: -float(c.size[a]))
+    if float(c.size[up_axis(c)]) >= 0.5 * float(c.size[long]):
+        return None
+    return long, depth
+
+
+def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
+    """``(k, axis, u, length)``: board ``k``'s face on its depth ``axis`` towards ``u``
+    (away from the camera at ``eye``) would reach the far face of a twin board of its
+    object (see the module docstring) when pushed out by ``length``; longest first."""
+    out = []
+    boards = [(k, c, board_axes(c)) for k, c in enumerate(arr.cuboids)
+              if c.object is not None and not c.extra.get("hallucinated")]
+    boards = [(k, c, ax) for k, c, ax in boards if ax is not None]
+    for k, c, (long, depth) in boards:
+        for _, q, (qlong, _) in boards:
+            if q is c or q.object != c.object:
+                continue
+            lc, lq = float(c.size[long]), float(q.size[qlong])
+            if (abs(lc - lq) > p.twin_size_rel * max(lc, lq)
+                    or abs(float(c.rotation[:, long] @ q.rotation[:, qlong])) < p.twin_cos):
+                continue
+            a0, a1 = extent_along(c, c.rotation[:, long])
+            b0, b1 = extent_along(q, c.rotation[:, long])
+            if min(a1, b1) - max(a0, b0) < 0.5 * min(lc, lq):
+                continue  # not above one another
+            u = c.rotation[:, depth] * (1.0 if float(c.rotation[:, depth] @ (c.center - eye))
+                                        >= 0 else -1.0)
+            c0, c1 = extent_along(c, u)
+            q0, q1 = extent_along(q, u)
+            if q0 <= c1 and q1 >= c0 and q1 - c1 > p.joined_min:
+                out.append((k, depth, u, q1 - c1))
+    return sorted(out, key=lambda t: -t[3])
+
+
 def apply(arr, evidence, p: Params, ctx):
     if not evidence:
         return
     arr = yield from _face_on(arr, evidence, p)
-    yield from _joined(arr, evidence, p)
+    arr = yield from _pushed_to(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
+                                "joined side by side to a deeper part of its object")
+    yield from _pushed_to(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
+                          "as deep as a twin board of its object")
 
 
-def _joined(arr, evidence, p: Params):
+def _pushed_to(arr, evidence, p: Params, pushes, why: str):
+    """Each box of ``pushes`` (see :func:`joined_pushes`) pushed back as far as it goes
+    in ``p.steps`` (no view saw the added space empty, nothing entered)."""
     from ..evidence import slab_samples
     from ..extend import Extension
 
     done: set[int] = set()
-    for k, axis, u, full in joined_pushes(arr, evidence.eye, p):
+    for k, axis, u, full in pushes:
         if k in done:
             continue
         c = arr.cuboids[k]
@@ -163,9 +219,8 @@ def _joined(arr, evidence, p: Params):
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
                 continue
-            v = yield Edit(changed_boxes(trial, arr),
-                           f"joined side by side to a deeper part of its object: pushed back "
-                           f"{1000 * length:.0f} mm")
+            v = yield Edit(changed_boxes(trial, arr), f"{why}: pushed back "
+                                                      f"{1000 * length:.0f} mm")
             if v.ok:
                 arr = v.arrangement
                 done.add(k)

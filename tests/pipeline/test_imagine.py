@@ -273,6 +273,41 @@ def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
     assert "leg" not in ids
 
 
+def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
+    """Two boards of one object, the same length and parallel, one above the other: the
+    lower one, fitted as its front strip and seen obliquely (so no face-on rule applies),
+    goes back to the upper one's back face; not where the view saw it is a strip, nor
+    for a board of another length."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    def view(truth):
+        intr = Intrinsics.kinect_v1()
+        T = look_at((2.0, -1.2, 1.3), (0.0, 0.0, 0.5))  # 59 degrees off the boards' depth
+        return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+    upper = box("upper", (0.0, 0.0, 0.8), (0.6, 0.3, 0.02), object="shelf")
+    lower = box("lower", (0.0, 0.0, 0.4), (0.6, 0.3, 0.02), object="shelf")
+    strip = box("lower", (0.0, -0.125, 0.4), (0.6, 0.05, 0.02), object="shelf")
+    arr = Arrangement((upper, strip), (ground(),))
+    out, ids = deepen_thin_boxes(arr, view([upper, lower]))
+    assert ids == ["lower"]
+    got = out.cuboid("lower")
+    np.testing.assert_allclose(got.size, lower.size, atol=1e-9)
+    np.testing.assert_allclose(got.center, lower.center, atol=1e-9)
+    # the face-on rule alone would not have moved it: the twin rule did
+    edits = [e for e in run("deepen", arr, view([upper, lower]))[1].edits if e.accepted]
+    assert [e.reason.split(":")[0] for e in edits] == ["as deep as a twin board of its object"]
+    # really a strip: the view saw the space behind it empty
+    out, ids = deepen_thin_boxes(arr, view([upper, strip]))
+    assert ids == [] and out.cuboid("lower") is strip
+    # a board of another length is no twin
+    short = box("lower", (0.0, -0.125, 0.4), (0.4, 0.05, 0.02), object="shelf")
+    out, ids = deepen_thin_boxes(Arrangement((upper, short), (ground(),)),
+                                 view([upper, lower.with_(size=np.array([0.4, 0.3, 0.02]))]))
+    assert ids == []
+
+
 def test_a_flat_slab_seen_by_its_edge_is_as_deep_as_what_it_rests_on():
     """A plank of its own on a block, fitted as the 6 cm of its near edge: it goes back
     as far as the block under it and the weight on it reach, not to a square."""
