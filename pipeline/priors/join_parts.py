@@ -2,7 +2,10 @@
 
 Evidence: the segmentation's objects and the depth views.  Regularity: an object is one
 connected rigid body, and a shelf's board whose end was not seen stops a few
-centimetres short of its side panel.  Two parts of one object that a short extension
+centimetres short of its side panel; a part under another of its object whose upper end
+no view saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from
+above) reaches up to it however far, the upper part growing over it where its end was
+hidden too.  Two parts of one object that a short extension
 (:func:`pipeline.search.short_join`) or two short ones across a corner
 (:func:`corner_joins`: a desk's panel just past the end of its top) bring together are
 joined, smallest added volume first, trimming the noisy edge of another object's box in
@@ -69,6 +72,9 @@ def apply(arr, evidence, p: Params, ctx):
                        and not (both and (_seen_through(arr, o.extensions, evidence)
                                           or along_link(arr, o.extensions, links,
                                                         e.a, e.b)))]
+        for a, b, o in hidden_joins(arr, max_ext, reached) if views else ():
+            if not _seen_through(arr, o.extensions, evidence):
+                trials.append((o.volume, a, b, o))
         for a, b, o in corner_joins(arr, max_ext, reached):
             if not (held and held.get(a) == held.get(b)
                     and _seen_through(arr, o.extensions, evidence)):
@@ -126,6 +132,52 @@ def apply(arr, evidence, p: Params, ctx):
         if not touched:
             break
 
+
+
+def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
+    """Joins of a part up to the part of its object above it: ``(a, b, option)``.
+
+    An upright part below another upright part of its object reaches up to it (a table's
+    leg whose upper end the overhanging top, or something in front, hid; its fit stops
+    where the view lost it), the upper part first growing along one of its horizontal
+    axes over the lower one's footprint where that sticks out (the top's end was hidden
+    too).  Each extension up to ``max_ext``: the caller, given views, keeps only joins
+    through space none of them saw empty.
+    Pairs in ``skip`` (touching, or joined by one short extension) are not tried.
+    """
+    from ..boxops import is_upright, up_axis
+    from ..extend import Extension, Option
+
+    out = []
+    for a, lo in enumerate(arr.cuboids):
+        if lo.object is None or not is_upright(lo):
+            continue
+        lz0, lz1 = z_range(lo)
+        for b, hi in enumerate(arr.cuboids):
+            if (b == a or hi.object != lo.object or (min(a, b), max(a, b)) in skip
+                    or not is_upright(hi)):
+                continue
+            hz0, _ = z_range(hi)
+            tol = float(pair_tolerance(lo.size, hi.size))
+            if hz0 - lz1 <= tol:
+                continue
+            # where lo's footprint sticks out of hi's (along hi's horizontal axes)
+            d = (lo.corners() - hi.center) @ hi.rotation
+            grow = []
+            for k in range(3):
+                if k == up_axis(hi):
+                    continue
+                half = float(hi.size[k]) / 2
+                for side, over in ((1, d[:, k].max() - half), (0, -d[:, k].min() - half)):
+                    if over > tol:
+                        grow.append(Extension(b, k, side, float(over)))
+            ax = up_axis(lo)
+            x = Extension(a, ax, 1 if lo.rotation[2, ax] > 0 else 0, hz0 - lz1)
+            if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
+                continue
+            ext = (*grow, x)
+            out.append((a, b, Option("fixed", ext, sum(e.volume(arr.sizes) for e in ext))))
+    return out
 
 
 def corner_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):

@@ -1022,6 +1022,42 @@ def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
     assert joined == [] and out.cuboid("panel") is other
 
 
+def test_a_leg_that_lost_its_upper_end_reaches_up_to_its_top():
+    """A table's leg fitted only up to 30 cm (the view lost its upper end) reaches up to
+    the top of its table through space no view saw empty; a stub that really ends
+    there (the view saw past its end) is left alone, and without views nothing is
+    hidden, so nothing is joined.  Where the top's end was lost too (fitted 25 cm
+    short), the top grows over the leg and the leg up to it."""
+    top = box("top", (0.0, 0.0, 0.71), (1.0, 0.6, 0.02), object="table")
+    legs = [box(f"leg{i}", (x, y, 0.35), (0.04, 0.04, 0.7), object="table")
+            for i, (x, y) in enumerate([(-0.45, -0.25), (0.45, -0.25), (-0.45, 0.25),
+                                        (0.45, 0.25)])]
+    lost = legs[3].with_(center=np.array([0.45, 0.25, 0.15]), size=np.array([0.04, 0.04, 0.3]))
+    arr = Arrangement((top, *legs[:3], lost), (ground(),))
+    out, joined = join_parts(arr, views=_shelf_view([top, *legs]))
+    assert joined == ["leg3+top"]
+    got = out.cuboid("leg3")
+    np.testing.assert_allclose(got.size, [0.04, 0.04, 0.7], atol=1e-9)
+    np.testing.assert_allclose(got.center, legs[3].center, atol=1e-9)
+    np.testing.assert_allclose(out.cuboid("top").center, top.center, atol=1e-12)
+    np.testing.assert_allclose(out.cuboid("top").size, top.size, atol=1e-12)
+    assert ("top", "leg3") in find_contacts(out).pairs
+    # a stub: the view saw the space above it empty
+    out, joined = join_parts(arr, views=_shelf_view([top, *legs[:3], lost]))
+    assert joined == [] and out.cuboid("leg3") is lost
+    # no views: nothing was hidden
+    assert join_parts(arr)[1] == []
+    # the top's end lost too: it grows over the leg, the leg up to it
+    short = top.with_(center=np.array([-0.125, 0.0, 0.71]), size=np.array([0.75, 0.6, 0.02]))
+    out, joined = join_parts(Arrangement((short, *legs[:3], lost), (ground(),)),
+                             views=_shelf_view([top, *legs]))
+    assert "leg3+top" in joined
+    t = out.cuboid("top")
+    assert t.center[0] + t.size[0] / 2 == pytest.approx(0.47, abs=1e-9)  # over the leg
+    assert out.cuboid("leg3").center[2] + out.cuboid("leg3").size[2] / 2 == \
+        pytest.approx(0.7, abs=1e-9)
+
+
 def _sofa_corner(cushion_gap: float, yaw_deg: float, deepened_back: bool = False):
     """A sofa's back, seat and right arm (one object, fused) and a cushion on the seat
     turned ``yaw_deg`` off the back, its rear corner nearest the back ``cushion_gap``
