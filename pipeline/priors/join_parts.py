@@ -5,7 +5,13 @@ connected rigid body, and a shelf's board whose end was not seen stops a few
 centimetres short of its side panel; a part under another of its object whose upper end
 no view saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from
 above) reaches up to it however far, the upper part growing over it where its end was
-hidden too.  Two parts of one object that a short extension
+hidden too.  Furniture stands on the floor, and its parts hold each other up, so no
+stability need makes their hidden lower ends reach it: an upright part of an object
+whose bottom is more than ``floor_gap`` above the floor reaches down to it through
+space no view saw empty and where it enters nothing (a desk's side panel, a
+sofa's back behind its seat): a part taller than wide, not standing on a part of its
+object, of an object another part of which stands within ``near_floor`` of the floor
+(the floor's plane takes a few centimetres of every object's points with it).  Two parts of one object that a short extension
 (:func:`pipeline.search.short_join`) or two short ones across a corner
 (:func:`corner_joins`: a desk's panel just past the end of its top) bring together are
 joined, smallest added volume first, trimming the noisy edge of another object's box in
@@ -33,6 +39,8 @@ class Params:
     trim_abs: float = 0.02  #: metres another object's box may give way ...
     trim_rel: float = 0.1  #: ... or this fraction of its extent, whichever is larger ...
     trim_max_share: float = 0.5  #: ... but never more than this share of it
+    floor_gap: float = 0.02  #: metres: a part further above the floor may reach down ...
+    near_floor: float = 0.06  #: ... when another part of its object is this near it
 
 
 def _seen_through(arr: Arrangement, extensions, evidence) -> bool:
@@ -131,6 +139,67 @@ def apply(arr, evidence, p: Params, ctx):
             touched |= changed | {a, b}
         if not touched:
             break
+    if views:
+        yield from _down_to_floor(arr, evidence, p)
+
+
+def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
+    """Extensions down to a level floor of the upright parts, taller than wide, whose
+    bottom lies more than ``gap`` above it, of objects another part of which stands
+    within ``near_floor`` of it, where no part of their object is under them; lowest
+    first."""
+    from ..boxops import horizontal_axes, is_upright, up_axis
+    from ..extend import Extension
+
+    floor = floor_height(arr)
+    if floor is None:
+        return []
+    parts: dict[str, list] = {}
+    for c in arr.cuboids:
+        if c.object is not None and is_upright(c):
+            parts.setdefault(c.object, []).append(c)
+    out = []
+    for k, c in enumerate(arr.cuboids):
+        mates = [q for q in parts.get(c.object, ()) if q.id != c.id]
+        if (not mates or not is_upright(c)
+                or float(c.size[up_axis(c)]) < min(float(c.size[a]) for a in horizontal_axes(c))
+                or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
+            continue
+        bottom = z_range(c)[0]
+        if any(z_range(q)[1] <= bottom + gap and _under(q, c) for q in mates):
+            continue  # it stands on a part of its object (a chair's back on its seat)
+        drop = bottom - floor
+        if drop > gap:
+            ax = up_axis(c)
+            out.append((drop, k, Extension(k, ax, 0 if c.rotation[2, ax] > 0 else 1, drop)))
+    return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
+
+
+def _under(q, c) -> bool:
+    """Whether box ``q``'s footprint overlaps box ``c``'s (in ``c``'s horizontal axes)."""
+    from ..boxops import horizontal_axes
+
+    d = (q.corners() - c.center) @ c.rotation
+    return all(d[:, a].min() < c.size[a] / 2 and d[:, a].max() > -c.size[a] / 2
+               for a in horizontal_axes(c))
+
+
+def _down_to_floor(arr: Arrangement, evidence, p: Params):
+    from ..extend import apply_offsets, offsets_of
+
+    for k, x in floor_reaches(arr, p.floor_gap, p.near_floor):
+        if _seen_through(arr, [x], evidence):
+            continue
+        geom = apply_offsets(arr, offsets_of([x], len(arr.cuboids)))
+        local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
+        cid = arr.cuboids[k].id
+        if any(cid in (a, b) for a, b, _ in find_contacts(local).penetrations):
+            continue
+        v = yield Edit((geom.cuboids[k],), f"{cid}, a part of {arr.cuboids[k].object}, "
+                                           f"reaches the floor {1000 * x.length:.0f} mm down "
+                                           f"through space no view saw")
+        if v.ok:
+            arr = v.arrangement
 
 
 

@@ -1058,6 +1058,32 @@ def test_a_leg_that_lost_its_upper_end_reaches_up_to_its_top():
         pytest.approx(0.7, abs=1e-9)
 
 
+def test_a_part_whose_lower_end_was_hidden_reaches_the_floor():
+    """A desk's side panel fitted from 30 cm up (its lower end lost) reaches the floor
+    through space no view saw empty; a drawer unit that really hangs there (the view saw
+    the space under it empty) is left alone, and so is a box of its own (what holds it
+    up is the search's to decide)."""
+    top = box("top", (0.0, 0.0, 0.735), (1.2, 0.6, 0.03), object="desk")
+    left = box("left", (-0.58, 0.0, 0.36), (0.04, 0.6, 0.72), object="desk")
+    right = box("right", (0.58, 0.0, 0.36), (0.04, 0.6, 0.72), object="desk")
+    lost = right.with_(center=np.array([0.58, 0.0, 0.51]), size=np.array([0.04, 0.6, 0.42]))
+    arr = Arrangement((top, left, lost), (ground(),))
+    out, ids = changed("join_parts", arr, _shelf_view([top, left, right]))
+    assert ids == ["right"]
+    got = out.cuboid("right")
+    np.testing.assert_allclose(got.size, right.size, atol=1e-9)
+    np.testing.assert_allclose(got.center, right.center, atol=1e-9)
+    assert ("right", "ground") in find_contacts(out).pairs
+    # a part that hangs: the view saw the space under it empty
+    out, ids = changed("join_parts", arr, _shelf_view([top, left, lost]))
+    assert ids == [] and out.cuboid("right") is lost
+    # a box of its own
+    alone = lost.with_(object="crate")
+    out, ids = changed("join_parts", Arrangement((top, left, alone), (ground(),)),
+                       _shelf_view([top, left, right]))
+    assert ids == []
+
+
 def _sofa_corner(cushion_gap: float, yaw_deg: float, deepened_back: bool = False):
     """A sofa's back, seat and right arm (one object, fused) and a cushion on the seat
     turned ``yaw_deg`` off the back, its rear corner nearest the back ``cushion_gap``
