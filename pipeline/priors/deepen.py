@@ -10,10 +10,17 @@ slab standing on its edge that is a box of its own or shows a face of
 ``big_face`` metres: a box in a pile seen obliquely, a sofa's base) has its back face
 pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
-entered.  A part goes no deeper than its object's other parts span along that axis, nor
-further than they reach behind it; a flat slab of its own (thinner than
-``thin_fraction`` of its width) no further than what it rests on and what rests on it
-(within ``rest_gap``) reach behind it: a plank on a block seen end-on is not a square.
+entered.  A panel of an object of several parts (its seen sides within ``thin_fraction``
+of each other: a desk's or a chair's side, a sofa's arm, a chair's back) is pushed only
+where its object ends within ``thin_fraction`` of its width behind it (a chair's back
+seen from the front goes back to the seat's rear edge): furniture is built of thin
+panels, so what shows a panel's depth is the parts it is joined to (below), not a square
+footprint (a desk seen from the side became a block filling the hidden space under its
+top).  A part goes no deeper than its object's other
+parts span along that axis, nor further than they reach behind it; a flat slab of its
+own (thinner than ``thin_fraction`` of its width) no further than what it rests on and
+what rests on it (within ``rest_gap``) reach behind it: a plank on a block seen end-on
+is not a square.
 Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
 back), it goes as deep as it fits, to ``resolution``.
 
@@ -246,6 +253,12 @@ def _face_on(arr, evidence, p: Params):
             width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
             if c.size[axis] >= p.thin_fraction * width:
                 continue
+            side = 1 if along > 0 else 0  # the face away from the camera
+            u = c.rotation[:, axis] * (1.0 if side else -1.0)
+            reach = object_reach(arr, c, u) + float(c.size[axis]) / 2
+            if (not single_part(arr, c) and width >= p.thin_fraction * height
+                    and height >= p.thin_fraction * width and reach > p.thin_fraction * width):
+                break  # a panel of furniture: its depth is what its joints say
             if abs(along) < np.cos(np.radians(p.face_on_part_deg)):
                 # seen obliquely: only a box of its own or a big face, and only a slab
                 # standing on its edge (not a keyboard seen from above)
@@ -254,10 +267,7 @@ def _face_on(arr, evidence, p: Params):
                         or not (big or single_part(arr, c))
                         or c.size[axis] >= p.thin_fraction * height):
                     continue
-            side = 1 if along > 0 else 0  # the face away from the camera
-            u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            target = min(width, object_depth(arr, c, axis),
-                         object_reach(arr, c, u) + float(c.size[axis]) / 2)
+            target = min(width, object_depth(arr, c, axis), reach)
             if height < p.thin_fraction * width and single_part(arr, c):
                 target = min(target, stack_reach(arr, c, u, p.rest_gap))
             full = target - float(c.size[axis])

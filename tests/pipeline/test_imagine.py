@@ -361,10 +361,17 @@ def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
     assert DEEPEN.big_face > 0.15
     out, ids = deepen_thin_boxes(Arrangement((part, other, *row), (ground(),)), views)
     assert "mid" not in ids
-    # ... while one with a big face (a sofa's base) is
-    out, ids = deepen_thin_boxes(Arrangement((seen.with_(object="shelf"), other, *row),
-                                             (ground(),)), views)
+    # ... nor a square panel of one (a desk's side) while its object goes on behind it
+    # (the board, 30 cm deep): furniture is built of thin panels ...
+    panel = seen.with_(object="shelf")
+    out, ids = deepen_thin_boxes(Arrangement((panel, other, *row), (ground(),)), views)
+    assert "mid" not in ids
+    # ... but one at its object's far end goes back to it (a board 10 cm deep)
+    shallow = other.with_(center=np.array([0.0, 0.05, 0.5]), size=np.array([0.6, 0.1, 0.02]))
+    out, ids = deepen_thin_boxes(Arrangement((panel, shallow, *row), (ground(),)), views)
     assert ids == ["mid"]
+    assert out.cuboid("mid").center[1] + out.cuboid("mid").size[1] / 2 == \
+        pytest.approx(0.1, abs=1e-9)
     # a low box seen from above-ish (thin against its width but not its height) is not
     flat = box("mid", (0, 0.004, 0.01), (0.3, 0.008, 0.012))
     out, ids = deepen_thin_boxes(Arrangement((flat, *row), (ground(),)), views)
