@@ -2,22 +2,24 @@
 
 Evidence: the segmentation's objects and the depth views.  Regularity: an object is one
 connected rigid body, and a shelf's board whose end was not seen stops a few
-centimetres short of its side panel; a part under another of its object whose upper end
-no view saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from
-above) reaches up to it however far, the upper part growing over it where its end was
-hidden too.  Furniture stands on the floor, and its parts hold each other up, so no
-stability need makes their hidden lower ends reach it: an upright part of an object
-whose bottom is more than ``floor_gap`` above the floor reaches down to it through
-space no view saw empty and where it enters nothing (a desk's side panel, a
-sofa's back behind its seat): a part taller than wide, not standing on a part of its
-object, of an object another part of which stands within ``near_floor`` of the floor
-(the floor's plane takes a few centimetres of every object's points with it).  Two parts of one object that a short extension
+centimetres short of its side panel.  Two parts of one object that a short extension
 (:func:`pipeline.search.short_join`) or two short ones across a corner
 (:func:`corner_joins`: a desk's panel just past the end of its top) bring together are
 joined, smallest added volume first, trimming the noisy edge of another object's box in
 the way by at most ``trim_abs`` or ``trim_rel`` of its extent (never ``trim_max_share``
 of it).  Two parts already held together through their object's other parts are not
 joined through space a view saw empty, nor along a third part touching both.
+
+Hidden ends.  With views, a part under another of its object whose upper end no view
+saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from above)
+reaches up to it however far, the upper part growing over it where its end was hidden
+too.  Furniture stands on the floor and its parts hold each other up, so no stability
+need makes their hidden lower ends reach it: a part taller than wide, not standing on
+a part of its object, of an object another part of which stands within ``near_floor``
+of the floor (the floor's plane takes a few centimetres of every object's points with
+it), whose bottom is more than ``floor_gap`` above the floor, reaches down to it
+(:func:`floor_reaches`: a desk's side panel, a sofa's back behind its seat).  Both only
+through space no view saw empty and where nothing is entered.
 """
 
 from __future__ import annotations
@@ -185,6 +187,8 @@ def _under(q, c) -> bool:
 
 
 def _down_to_floor(arr: Arrangement, evidence, p: Params):
+    """Each of :func:`floor_reaches` proposed where no view saw the space empty and the
+    grown part enters nothing."""
     from ..extend import apply_offsets, offsets_of
 
     for k, x in floor_reaches(arr, p.floor_gap, p.near_floor):
@@ -202,7 +206,6 @@ def _down_to_floor(arr: Arrangement, evidence, p: Params):
             arr = v.arrangement
 
 
-
 def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     """Joins of a part up to the part of its object above it: ``(a, b, option)``.
 
@@ -211,8 +214,8 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     where the view lost it), the upper part first growing along one of its horizontal
     axes over the lower one's footprint where that sticks out (the top's end was hidden
     too).  Each extension up to ``max_ext``: the caller, given views, keeps only joins
-    through space none of them saw empty.
-    Pairs in ``skip`` (touching, or joined by one short extension) are not tried.
+    through space none of them saw empty.  Pairs in ``skip`` (touching, or joined by one
+    short extension) are not tried.
     """
     from ..boxops import is_upright, up_axis
     from ..extend import Extension, Option
