@@ -16,11 +16,10 @@ where its object ends within ``thin_fraction`` of its width behind it (a chair's
 seen from the front goes back to the seat's rear edge): furniture is built of thin
 panels, so what shows a panel's depth is the parts it is joined to (below), not a square
 footprint (a desk seen from the side became a block filling the hidden space under its
-top).  A part goes no deeper than its object's other
-parts span along that axis, nor further than they reach behind it; a flat slab of its
-own (thinner than ``thin_fraction`` of its width) no further than what it rests on and
-what rests on it (within ``rest_gap``) reach behind it: a plank on a block seen end-on
-is not a square.
+top).  A part goes no deeper than its object's other parts span along that axis, nor
+further than they reach behind it; a flat slab of its own (thinner than
+``thin_fraction`` of its width) no further than what it rests on and what rests on it
+(within ``rest_gap``) reach behind it: a plank on a block seen end-on is not a square.
 Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
 back), it goes as deep as it fits, to ``resolution``.
 
