@@ -121,6 +121,20 @@ def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
     return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
 
 
+def away_from(c, axis: int, eye: np.ndarray) -> np.ndarray:
+    """Box ``c``'s ``axis`` turned away from the camera at ``eye``."""
+    u = c.rotation[:, axis]
+    return u if float(u @ (c.center - eye)) >= 0 else -u
+
+
+def reach_past(c, q, u: np.ndarray, p: Params) -> float | None:
+    """How far box ``q`` reaches past box ``c``'s face towards ``u`` when the two overlap
+    along ``u`` and it reaches more than ``p.joined_min`` further; None otherwise."""
+    c0, c1 = extent_along(c, u)
+    q0, q1 = extent_along(q, u)
+    return q1 - c1 if q0 <= c1 and q1 >= c0 and q1 - c1 > p.joined_min else None
+
+
 def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     """``(k, axis, u, length)``: box ``k``'s face on ``axis`` towards ``u`` (away from the
     camera at ``eye``) would reach the far face of a part of its object joined to it side
@@ -144,12 +158,10 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 if max(q0 - c1, c0 - q1) > p.joined_gap or min(c1, q1) - max(c0, q0) > p.joined_gap:
                     continue
                 # ... and q reaches further across it, away from the eye
-                u = c.rotation[:, a] * (1.0 if float(c.rotation[:, a] @ (c.center - eye)) >= 0
-                                        else -1.0)
-                c0, c1 = extent_along(c, u)
-                q0, q1 = extent_along(q, u)
-                if q0 <= c1 and q1 >= c0 and q1 - c1 > p.joined_min:
-                    out.append((k, a, u, q1 - c1))
+                u = away_from(c, a, eye)
+                length = reach_past(c, q, u, p)
+                if length is not None:
+                    out.append((k, a, u, length))
     return sorted(out, key=lambda t: -t[3])
 
 
@@ -187,12 +199,10 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
             b0, b1 = extent_along(q, c.rotation[:, long])
             if min(a1, b1) - max(a0, b0) < 0.5 * min(lc, lq):
                 continue  # not above one another
-            u = c.rotation[:, depth] * (1.0 if float(c.rotation[:, depth] @ (c.center - eye))
-                                        >= 0 else -1.0)
-            c0, c1 = extent_along(c, u)
-            q0, q1 = extent_along(q, u)
-            if q0 <= c1 and q1 >= c0 and q1 - c1 > p.joined_min:
-                out.append((k, depth, u, q1 - c1))
+            u = away_from(c, depth, eye)
+            length = reach_past(c, q, u, p)
+            if length is not None:
+                out.append((k, depth, u, length))
     return sorted(out, key=lambda t: -t[3])
 
 

@@ -34,6 +34,9 @@ from ..evidence import FREE_FRACTION_MAX, slab_samples
 from ..model import Arrangement, box_corners
 from .base import Edit, Prior, principle_of
 
+#: The vertical.
+_UP = np.array([0.0, 0.0, 1.0])
+
 
 @dataclass(frozen=True)
 class Params:
@@ -145,45 +148,46 @@ def apply(arr, evidence, p: Params, ctx):
         yield from _down_to_floor(arr, evidence, p)
 
 
+def upright_parts(arr: Arrangement) -> dict[str, list]:
+    """Object -> ``(index, box)`` of each of its upright parts."""
+    from ..boxops import is_upright
+
+    parts: dict[str, list] = {}
+    for k, c in enumerate(arr.cuboids):
+        if c.object is not None and is_upright(c):
+            parts.setdefault(c.object, []).append((k, c))
+    return parts
+
+
 def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     """Extensions down to a level floor of the upright parts, taller than wide, whose
     bottom lies more than ``gap`` above it, of objects another part of which stands
     within ``near_floor`` of it, where no part of their object is under them; lowest
     first."""
-    from ..boxops import horizontal_axes, is_upright, up_axis
+    from ..boxops import horizontal_axes, overlap_across, up_axis
     from ..extend import Extension
 
     floor = floor_height(arr)
     if floor is None:
         return []
-    parts: dict[str, list] = {}
-    for c in arr.cuboids:
-        if c.object is not None and is_upright(c):
-            parts.setdefault(c.object, []).append(c)
     out = []
-    for k, c in enumerate(arr.cuboids):
-        mates = [q for q in parts.get(c.object, ()) if q.id != c.id]
-        if (not mates or not is_upright(c)
-                or float(c.size[up_axis(c)]) < min(float(c.size[a]) for a in horizontal_axes(c))
-                or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
-            continue
-        bottom = z_range(c)[0]
-        if any(z_range(q)[1] <= bottom + gap and _under(q, c) for q in mates):
-            continue  # it stands on a part of its object (a chair's back on its seat)
-        drop = bottom - floor
-        if drop > gap:
-            ax = up_axis(c)
-            out.append((drop, k, Extension(k, ax, 0 if c.rotation[2, ax] > 0 else 1, drop)))
+    for parts in upright_parts(arr).values():
+        for k, c in parts:
+            mates = [q for j, q in parts if j != k]
+            if (not mates
+                    or float(c.size[up_axis(c)]) < min(float(c.size[a])
+                                                       for a in horizontal_axes(c))
+                    or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
+                continue
+            bottom = z_range(c)[0]
+            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, q, _UP) for q in mates):
+                continue  # it stands on a part of its object (a chair's back on its seat)
+            drop = bottom - floor
+            if drop > gap:
+                ax = up_axis(c)
+                out.append((drop, k, Extension(k, ax, 0 if c.rotation[2, ax] > 0 else 1,
+                                               drop)))
     return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
-
-
-def _under(q, c) -> bool:
-    """Whether box ``q``'s footprint overlaps box ``c``'s (in ``c``'s horizontal axes)."""
-    from ..boxops import horizontal_axes
-
-    d = (q.corners() - c.center) @ c.rotation
-    return all(d[:, a].min() < c.size[a] / 2 and d[:, a].max() > -c.size[a] / 2
-               for a in horizontal_axes(c))
 
 
 def _down_to_floor(arr: Arrangement, evidence, p: Params):
@@ -217,38 +221,35 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     through space none of them saw empty.  Pairs in ``skip`` (touching, or joined by one
     short extension) are not tried.
     """
-    from ..boxops import is_upright, up_axis
+    from ..boxops import horizontal_axes, up_axis
     from ..extend import Extension, Option
 
     out = []
-    for a, lo in enumerate(arr.cuboids):
-        if lo.object is None or not is_upright(lo):
-            continue
-        lz0, lz1 = z_range(lo)
-        for b, hi in enumerate(arr.cuboids):
-            if (b == a or hi.object != lo.object or (min(a, b), max(a, b)) in skip
-                    or not is_upright(hi)):
-                continue
-            hz0, _ = z_range(hi)
-            tol = float(pair_tolerance(lo.size, hi.size))
-            if hz0 - lz1 <= tol:
-                continue
-            # where lo's footprint sticks out of hi's (along hi's horizontal axes)
-            d = (lo.corners() - hi.center) @ hi.rotation
-            grow = []
-            for k in range(3):
-                if k == up_axis(hi):
+    for parts in upright_parts(arr).values():
+        corners = {k: c.corners() for k, c in parts}
+        for a, lo in parts:
+            lz1 = z_range(lo)[1]
+            for b, hi in parts:
+                if b == a or (min(a, b), max(a, b)) in skip:
                     continue
-                half = float(hi.size[k]) / 2
-                for side, over in ((1, d[:, k].max() - half), (0, -d[:, k].min() - half)):
-                    if over > tol:
-                        grow.append(Extension(b, k, side, float(over)))
-            ax = up_axis(lo)
-            x = Extension(a, ax, 1 if lo.rotation[2, ax] > 0 else 0, hz0 - lz1)
-            if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
-                continue
-            ext = (*grow, x)
-            out.append((a, b, Option("fixed", ext, sum(e.volume(arr.sizes) for e in ext))))
+                hz0 = z_range(hi)[0]
+                tol = float(pair_tolerance(lo.size, hi.size))
+                if hz0 - lz1 <= tol:
+                    continue
+                # where lo's footprint sticks out of hi's (along hi's horizontal axes)
+                d = (corners[a] - hi.center) @ hi.rotation
+                grow = []
+                for k in horizontal_axes(hi):
+                    half = float(hi.size[k]) / 2
+                    for side, over in ((1, d[:, k].max() - half), (0, -d[:, k].min() - half)):
+                        if over > tol:
+                            grow.append(Extension(b, k, side, float(over)))
+                ax = up_axis(lo)
+                x = Extension(a, ax, 1 if lo.rotation[2, ax] > 0 else 0, hz0 - lz1)
+                if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
+                    continue
+                ext = (*grow, x)
+                out.append((a, b, Option("fixed", ext, sum(e.volume(arr.sizes) for e in ext))))
     return out
 
 
