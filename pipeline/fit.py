@@ -158,23 +158,36 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
 
 
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
-                 min_face: int = 15, trim: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+                 min_face: int = 15, trim: float = 1.0,
+                 toward: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Box extents (lo (3,), hi (3,)) in the box frame from noisy surface points.
 
     A face that was seen is placed at the median of its own points (points whose normal
-    is within ``acos(face_cos)`` of its axis, in the half of the box nearer that face):
-    depth noise scatters a face on both sides of it, so its extreme points overshoot by
-    two to three standard deviations.  A face not seen gets the ``trim`` / ``100 - trim``
-    percentile of all points (the edges of the faces that were seen).
+    is within ``acos(face_cos)`` of its axis): depth noise scatters a face on both sides
+    of it, so its extreme points overshoot by two to three standard deviations.  A face
+    not seen gets the ``trim`` / ``100 - trim`` percentile of all points (the edges of the
+    faces that were seen).
+
+    Which face a point lies on: with ``toward`` ((n, 3), from each point towards the
+    viewpoint that saw it, box frame), the side its normal faces once turned towards that
+    viewpoint, for a sensor sees only the faces turned to it.  This holds for a box
+    thinner than the noise, whose one seen face scatters across the box's middle.
+    Without it, the half of the box the point lies in.
     """
     lo = np.percentile(local, trim, axis=0)
     hi = np.percentile(local, 100.0 - trim, axis=0)
     mid = (lo + hi) / 2
+    if toward is not None:
+        flip = np.sum(local_normals * toward, axis=1) < 0
+        local_normals = np.where(flip[:, None], -local_normals, local_normals)
+    need = max(min_face, int(0.03 * len(local)))
     for a in range(3):
         on = np.abs(local_normals[:, a]) >= face_cos
-        x = local[on, a]
-        need = max(min_face, int(0.03 * len(local)))
-        low, high = x[x < mid[a]], x[x >= mid[a]]
+        if toward is not None:
+            low, high = local[on & (local_normals[:, a] < 0), a], local[on & (local_normals[:, a] > 0), a]
+        else:
+            x = local[on, a]
+            low, high = x[x < mid[a]], x[x >= mid[a]]
         if len(low) >= need:
             lo[a] = float(np.median(low))
         if len(high) >= need:
@@ -185,13 +198,15 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
 
 
 def fit_part(points: np.ndarray, normals: np.ndarray, cell: float, rotation: np.ndarray,
-             min_points: int = 20) -> list[FittedBox]:
+             min_points: int = 20, viewpoint: np.ndarray | None = None) -> list[FittedBox]:
     """One cuboid for the points of one part (a segmentation that names parts), in the
-    frame ``rotation``, its faces placed by :func:`face_extents`."""
+    frame ``rotation``, its faces placed by :func:`face_extents` (``viewpoint``: the
+    camera's centre, world, that saw every point)."""
     if len(points) < min_points:
         return []
     local = points @ rotation
-    lo, hi = face_extents(local, normals @ rotation)
+    toward = None if viewpoint is None else (np.asarray(viewpoint, float) - points) @ rotation
+    lo, hi = face_extents(local, normals @ rotation, toward=toward)
     size = np.maximum(hi - lo, 0.5 * cell)
     return [FittedBox(rotation @ ((lo + hi) / 2), rotation.copy(), size, len(points))]
 
@@ -518,7 +533,7 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
                solid: Callable[[np.ndarray], np.ndarray] | None = None,
                plane_threshold: float | None = None, min_points: int = 20,
                normals: np.ndarray | None = None, rotation: np.ndarray | None = None,
-               single: bool = False) -> list[FittedBox]:
+               single: bool = False, viewpoint: np.ndarray | None = None) -> list[FittedBox]:
     """Cuboids for one object: one slanted box, or ground-aligned boxes.
 
     Parameters
@@ -528,6 +543,8 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     rotation : the upright frame to use (e.g. shared by the parts of one object).
     single : the points are one part (the segmentation names parts): one box
         (:func:`fit_part`) instead of the slab cover of :func:`fit_upright`.
+    viewpoint : (3,) the centre of the one camera that saw every point, world; it tells
+        which face a point lies on (:func:`face_extents`).
     """
     if len(points) < min_points:
         return []
@@ -547,7 +564,8 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     if R is not None:
         local = points @ R
         if normals is not None:
-            lo, hi = face_extents(local, normals @ R, trim=0.5)
+            toward = None if viewpoint is None else (np.asarray(viewpoint, float) - points) @ R
+            lo, hi = face_extents(local, normals @ R, trim=0.5, toward=toward)
         else:
             lo, hi = np.percentile(local, [0.5, 99.5], axis=0)
         size = np.maximum(hi - lo, cell)
@@ -555,7 +573,7 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     if single and normals is not None:
         if rotation is None:
             rotation = upright_rotation(points, normals)
-        return fit_part(points, normals, cell, rotation, min_points)
+        return fit_part(points, normals, cell, rotation, min_points, viewpoint)
     # an object of several parts: its outline's rectangle orients the slab cover
     return fit_upright(points, cell, solid=solid, min_points=min_points, rotation=rotation)
 

@@ -293,6 +293,7 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         for b in fit_object(world[sel], cell, rng, solid=solid,
                             plane_threshold=max(cell, frame.threshold), normals=normals[sel],
                             rotation=frames.get(names[k]), single=part_of[k] is not None,
+                            viewpoint=T_world_cam[:3, 3] if camera else None,
                             # a named part: one box, from as few points as its segment
                             # needed; a cluster's slab cover keeps slabs of 20 or more
                             min_points=MIN_INSTANCE_POINTS if part_of[k] is not None else 20):

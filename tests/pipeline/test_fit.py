@@ -245,6 +245,31 @@ def test_face_extents_place_seen_faces_at_their_median_not_their_noisy_extremes(
     np.testing.assert_allclose(boxes[0].size, s, atol=0.012)
 
 
+def test_a_panel_thinner_than_the_noise_lies_behind_its_seen_face():
+    """A 2 cm board seen face-on from 3.5 m (depth noise 2 cm): its one seen face
+    scatters across the board's middle.  Told where the camera is, the fit puts the
+    near face at the median of the face's points and the board behind it; without the
+    camera the box straddles the surface, half of it in front of the board."""
+    rng = np.random.default_rng(3)
+    s = np.array([0.02, 0.6, 0.5])  # thin along x, the camera on the +x side
+    sigma = 0.02
+    n = 6000
+    pts = np.column_stack([s[0] / 2 + rng.normal(0.0, sigma, n),
+                           rng.uniform(-s[1] / 2, s[1] / 2, n),
+                           rng.uniform(-s[2] / 2, s[2] / 2, n)])
+    # the normals a local fit gives a flat noisy face: along x, with either sign
+    normals = np.zeros((n, 3))
+    normals[:, 0] = rng.choice([-1.0, 1.0], n)
+    camera = np.array([3.5, 0.0, 0.0])
+    (box,) = fit_part(pts, normals, 0.01, np.eye(3), viewpoint=camera)
+    near, far = box.center[0] + box.size[0] / 2, box.center[0] - box.size[0] / 2
+    assert near == pytest.approx(s[0] / 2, abs=0.003)  # the median, not the noisy extreme
+    assert far < -s[0] / 2  # the board's far face is not seen: the box reaches past it
+    (blind,) = fit_part(pts, normals, 0.01, np.eye(3))
+    assert blind.center[0] == pytest.approx(s[0] / 2, abs=0.003)  # centred on the surface
+    assert blind.center[0] + blind.size[0] / 2 > s[0] / 2 + 0.5 * sigma
+
+
 def test_a_tilted_box_keeps_its_slant_frame_and_a_small_noisy_box_stays_upright():
     rng = np.random.default_rng(11)
     # a box leaning at 35 degrees: the normals agree with the tilted planes
