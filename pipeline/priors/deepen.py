@@ -37,6 +37,12 @@ their length) of the same length (within ``twin_size_rel``), parallel (``twin_co
 above one another are as deep as each other, so the shallower one is pushed back to the
 deeper one's far face in the same way (a shelf's lower boards half hidden behind its
 books, its top board seen edge-on at eye height).
+
+What rests on a board lies on it whole: a board whose face away from the camera stops
+short of the far face of a box resting on it (within ``rest_gap``), or of any part of
+that box's object, by more than
+``joined_min`` is pushed back under it in the same way (a desk's top seen edge-on from
+its height, the monitor on it seen reaching further back).
 """
 
 from __future__ import annotations
@@ -206,14 +212,40 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     return sorted(out, key=lambda t: -t[3])
 
 
+def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
+    """``(k, axis, u, length)``: board ``k``'s face on a horizontal ``axis`` towards ``u``
+    (away from the camera at ``eye``) would reach the far face of what rests on it (a box
+    whose bottom lies above the board's middle, within ``p.rest_gap`` of its top, and
+    every part of that box's object when it is another object than the board's) when
+    pushed out by ``length``; longest first."""
+    out = []
+    for k, c in enumerate(arr.cuboids):
+        if c.extra.get("hallucinated") or board_axes(c) is None:
+            continue
+        middle = float(c.center[2])  # on it, not beside it on what it stands on
+        on = [q for q in arr.cuboids if q is not c and z_range(q)[0] > middle
+              and resting_on(arr, q, p.rest_gap) is c]
+        objects = {q.object for q in on if q.object is not None and q.object != c.object}
+        carried = on + [q for q in arr.cuboids if q.object in objects and q not in on]
+        for axis in horizontal_axes(c):
+            u = away_from(c, axis, eye)
+            far = extent_along(c, u)[1]
+            length = max((extent_along(q, u)[1] - far for q in carried), default=0.0)
+            if length > p.joined_min:
+                out.append((k, axis, u, length))
+    return sorted(out, key=lambda t: -t[3])
+
+
 def apply(arr, evidence, p: Params, ctx):
     if not evidence:
         return
     arr = yield from _face_on(arr, evidence, p)
     arr = yield from _pushed_to(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
                                 "joined side by side to a deeper part of its object")
-    yield from _pushed_to(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
-                          "as deep as a twin board of its object")
+    arr = yield from _pushed_to(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
+                                "as deep as a twin board of its object")
+    yield from _pushed_to(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
+                          "under all of what rests on it")
 
 
 def _pushed_to(arr, evidence, p: Params, pushes, why: str):

@@ -308,6 +308,43 @@ def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     assert ids == []
 
 
+def test_a_desk_top_seen_by_its_edge_reaches_under_the_monitor_on_it():
+    """A desk's top and sides fitted as their 4 cm front edges (the camera at the top's
+    height) under a monitor whose screen was seen further back: the top goes back under
+    the screen's far face, as far as the view did not see the space empty.  Seen from
+    above, a top that really is a strip stays one."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    def view(truth, eye):
+        intr = Intrinsics.kinect_v1()
+        T = look_at(eye, (0.0, 0.0, 0.7))
+        return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+    top = box("top", (0.0, 0.0, 0.75), (1.0, 0.6, 0.03), object="desk")
+    sides = [box(f"side{k}", (x, 0.0, 0.3675), (0.03, 0.6, 0.735), object="desk")
+             for k, x in enumerate((-0.485, 0.485))]
+    strip = box("top", (0.0, -0.28, 0.75), (1.0, 0.04, 0.03), object="desk")
+    edges = [s.with_(center=s.center + [0, -0.28, 0], size=np.array([0.03, 0.04, 0.735]))
+             for s in sides]
+    base = box("base", (0.0, -0.2, 0.77), (0.2, 0.15, 0.01), object="monitor")
+    screen = box("screen", (0.0, 0.05, 0.97), (0.5, 0.02, 0.3), object="monitor")
+    arr = Arrangement((strip, *edges, base, screen), (ground(),))
+    level = (0.3, -2.2, 0.75)
+    edits = [e for e in run("deepen", arr, view([top, *sides, base, screen], level))[1].edits
+             if e.accepted]
+    assert [e.reason.split(":")[0] for e in edits] == ["under all of what rests on it"]
+    out, ids = deepen_thin_boxes(arr, view([top, *sides, base, screen], level))
+    assert ids == ["top"]
+    got = out.cuboid("top")
+    front, back = got.center[1] - got.size[1] / 2, got.center[1] + got.size[1] / 2
+    assert front == pytest.approx(-0.3, abs=1e-9)  # the seen edge stays
+    assert back == pytest.approx(0.06, abs=1e-9)  # under the screen's far face
+    # seen from above, the space behind a strip really 4 cm deep is empty: nothing moves
+    out, ids = deepen_thin_boxes(arr, view([strip, *edges, base, screen], (0.3, -2.0, 1.6)))
+    assert "top" not in ids
+
+
 def test_a_flat_slab_seen_by_its_edge_is_as_deep_as_what_it_rests_on():
     """A plank of its own on a block, fitted as the 6 cm of its near edge: it goes back
     as far as the block under it and the weight on it reach, not to a square."""
