@@ -39,10 +39,10 @@ deeper one's far face in the same way (a shelf's lower boards half hidden behind
 books, its top board seen edge-on at eye height).
 
 What rests on a board lies on it whole: a board whose face away from the camera stops
-short of the far face of a box resting on it (within ``rest_gap``), or of any part of
-that box's object, by more than
-``joined_min`` is pushed back under it in the same way (a desk's top seen edge-on from
-its height, the monitor on it seen reaching further back).
+short by more than ``joined_min`` of the far face of a box resting on it (its bottom
+above the board's middle, within ``rest_gap`` of its top), or of any part of that box's
+object, is pushed back under it in the same way (a desk's top seen edge-on from its
+height, the monitor on it seen reaching further back).
 """
 
 from __future__ import annotations
@@ -226,7 +226,8 @@ def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
         on = [q for q in arr.cuboids if q is not c and z_range(q)[0] > middle
               and resting_on(arr, q, p.rest_gap) is c]
         objects = {q.object for q in on if q.object is not None and q.object != c.object}
-        carried = on + [q for q in arr.cuboids if q.object in objects and q not in on]
+        ids = {q.id for q in on}
+        carried = on + [q for q in arr.cuboids if q.object in objects and q.id not in ids]
         for axis in horizontal_axes(c):
             u = away_from(c, axis, eye)
             far = extent_along(c, u)[1]
