@@ -159,7 +159,7 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
 
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
                  min_face: int = 15, trim: float = 1.0,
-                 toward: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 eye: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Box extents (lo (3,), hi (3,)) in the box frame from noisy surface points.
 
     A face that was seen is placed at the median of its own points (points whose normal
@@ -168,22 +168,22 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
     not seen gets the ``trim`` / ``100 - trim`` percentile of all points (the edges of the
     faces that were seen).
 
-    Which face a point lies on: with ``toward`` ((n, 3), from each point towards the
-    viewpoint that saw it, box frame), the side its normal faces once turned towards that
-    viewpoint, for a sensor sees only the faces turned to it.  This holds for a box
+    Which face a point lies on: with ``eye`` ((3,), the centre of the camera that saw
+    every point, box frame), the side its normal faces once turned towards the camera,
+    for a sensor sees only the faces turned to it.  This holds for a box
     thinner than the noise, whose one seen face scatters across the box's middle.
     Without it, the half of the box the point lies in.
     """
     lo = np.percentile(local, trim, axis=0)
     hi = np.percentile(local, 100.0 - trim, axis=0)
     mid = (lo + hi) / 2
-    if toward is not None:
-        flip = np.sum(local_normals * toward, axis=1) < 0
+    if eye is not None:
+        flip = np.sum(local_normals * (np.asarray(eye, float) - local), axis=1) < 0
         local_normals = np.where(flip[:, None], -local_normals, local_normals)
     need = max(min_face, int(0.03 * len(local)))
     for a in range(3):
         on = np.abs(local_normals[:, a]) >= face_cos
-        if toward is not None:
+        if eye is not None:
             low, high = local[on & (local_normals[:, a] < 0), a], local[on & (local_normals[:, a] > 0), a]
         else:
             x = local[on, a]
@@ -205,8 +205,8 @@ def fit_part(points: np.ndarray, normals: np.ndarray, cell: float, rotation: np.
     if len(points) < min_points:
         return []
     local = points @ rotation
-    toward = None if viewpoint is None else (np.asarray(viewpoint, float) - points) @ rotation
-    lo, hi = face_extents(local, normals @ rotation, toward=toward)
+    eye = None if viewpoint is None else np.asarray(viewpoint, float) @ rotation
+    lo, hi = face_extents(local, normals @ rotation, eye=eye)
     size = np.maximum(hi - lo, 0.5 * cell)
     return [FittedBox(rotation @ ((lo + hi) / 2), rotation.copy(), size, len(points))]
 
@@ -564,8 +564,8 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     if R is not None:
         local = points @ R
         if normals is not None:
-            toward = None if viewpoint is None else (np.asarray(viewpoint, float) - points) @ R
-            lo, hi = face_extents(local, normals @ R, trim=0.5, toward=toward)
+            eye = None if viewpoint is None else np.asarray(viewpoint, float) @ R
+            lo, hi = face_extents(local, normals @ R, trim=0.5, eye=eye)
         else:
             lo, hi = np.percentile(local, [0.5, 99.5], axis=0)
         size = np.maximum(hi - lo, cell)

@@ -219,12 +219,16 @@ def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     every part of that box's object when it is another object than the board's) when
     pushed out by ``length``; longest first."""
     out = []
+    support = {}  # box id -> the box it rests on, found once for every board
+    for q in arr.cuboids:
+        s = resting_on(arr, q, p.rest_gap)
+        if s is not None:
+            support[q.id] = s.id
     for k, c in enumerate(arr.cuboids):
         if c.extra.get("hallucinated") or board_axes(c) is None:
             continue
         middle = float(c.center[2])  # on it, not beside it on what it stands on
-        on = [q for q in arr.cuboids if q is not c and z_range(q)[0] > middle
-              and resting_on(arr, q, p.rest_gap) is c]
+        on = [q for q in arr.cuboids if support.get(q.id) == c.id and z_range(q)[0] > middle]
         objects = {q.object for q in on if q.object is not None and q.object != c.object}
         ids = {q.id for q in on}
         carried = on + [q for q in arr.cuboids if q.object in objects and q.id not in ids]

@@ -148,6 +148,11 @@ def apply(arr, evidence, p: Params, ctx):
         yield from _down_to_floor(arr, evidence, p)
 
 
+def _end(c, ax: int, top: bool) -> int:
+    """The side (0: -ax, 1: +ax) of box ``c``'s upright axis ``ax`` at its top or bottom."""
+    return int((float(c.rotation[2, ax]) > 0) == top)
+
+
 def upright_parts(arr: Arrangement) -> dict[str, list]:
     """Object -> ``(index, box)`` of each of its upright parts."""
     from ..boxops import is_upright
@@ -185,8 +190,7 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
             drop = bottom - floor
             if drop > gap:
                 ax = up_axis(c)
-                out.append((drop, k, Extension(k, ax, 0 if c.rotation[2, ax] > 0 else 1,
-                                               drop)))
+                out.append((drop, k, Extension(k, ax, _end(c, ax, top=False), drop)))
     return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
 
 
@@ -245,7 +249,7 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                         if over > tol:
                             grow.append(Extension(b, k, side, float(over)))
                 ax = up_axis(lo)
-                x = Extension(a, ax, 1 if lo.rotation[2, ax] > 0 else 0, hz0 - lz1)
+                x = Extension(a, ax, _end(lo, ax, top=True), hz0 - lz1)
                 if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
                     continue
                 ext = (*grow, x)
