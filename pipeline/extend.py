@@ -109,6 +109,7 @@ def apply_offsets(arr: Arrangement, offsets: np.ndarray, memo: dict | None = Non
     shift = np.einsum("kij,kj->ki", arr.rotations, (offsets[:, :, 1] - offsets[:, :, 0]) / 2.0)
     centers = arr.centers + shift
     moved = np.any(offsets != 0, axis=(1, 2))
+    centers = _lift_leaning(arr, centers, sizes, moved)
     cubs = list(arr.cuboids)
     for k in np.nonzero(moved)[0].tolist():
         key = (k, offsets[k].tobytes())
@@ -121,6 +122,33 @@ def apply_offsets(arr: Arrangement, offsets: np.ndarray, memo: dict | None = Non
                 memo[key] = c
         cubs[k] = c
     return arr.with_(cuboids=tuple(cubs))
+
+
+def _lift_leaning(arr: Arrangement, centers: np.ndarray, sizes: np.ndarray,
+                  moved: np.ndarray) -> np.ndarray:
+    """``centers`` with each pushed slanted box that its pushes took into the ground
+    lifted back onto it.
+
+    Each push is measured on the fitted boxes alone.  On an upright box the pushes are
+    independent; on a leaning one a push of its back to a wall lowers its foot too, and
+    with the push of the foot to the floor the two go into the floor.  A leaning box
+    slides up its wall instead: what would enter the floor lifts it (along the floor's
+    normal, which keeps a contact with an upright wall)."""
+    g = next((s for s in arr.supports if s.id == "ground"), None)
+    if g is None:
+        return centers
+    out = centers
+    for k in np.nonzero(moved)[0].tolist():
+        c = arr.cuboids[k]
+        if not c.extra.get("slanted"):
+            continue
+        low = float(((box_corners(centers[k:k + 1], c.rotation[None], sizes[k:k + 1])[0]
+                      - g.point) @ g.normal).min())
+        low0 = float(((c.corners() - g.point) @ g.normal).min())
+        if low < 0.0 <= low0:
+            out = out.copy() if out is centers else out
+            out[k] = out[k] - low * g.normal
+    return out
 
 
 def apart(arr: Arrangement, geom: Arrangement) -> Arrangement:

@@ -476,6 +476,44 @@ def slant_frame(normals: list[np.ndarray]) -> np.ndarray | None:
     return R
 
 
+#: A leaning board seen by its broad face only: the one tilted RANSAC plane must hold
+#: this share of the object's points (the rest: its edges and the noise around them).
+LEAN_MIN_SHARE = 0.85
+
+
+def lean_frame(points: np.ndarray, normal: np.ndarray, threshold: float) -> np.ndarray | None:
+    """Box frame (3, 3) of a board that leans, seen by one face only, or None.
+
+    Evidence: one large plane tilted between :data:`SLANT_MIN_DEG` and its complement
+    from the vertical, holding :data:`LEAN_MIN_SHARE` of the object's points and wide
+    enough in both directions for its tilt to be known: across a width ``w`` a plane
+    of points within ``threshold`` turns by up to ``atan(2 threshold / w)``, which must
+    stay under half of :data:`SLANT_MIN_DEG` (a board's edge strip, 3 cm wide, turns
+    freely about its length).
+    Principle: a box that leans rests on one of its edges (on the floor, on a shelf),
+    and an edge that rests on a level surface is level; so one axis of the box is the
+    horizontal line in the seen face, the second its line of steepest slope, the third
+    the face's normal.  The paper's rule needs a second, orthogonal plane, which a thin
+    board seen from the front does not show (its edge holds 1-3 % of the points)."""
+    n = np.asarray(normal, float)
+    tilt = np.degrees(np.arccos(min(1.0, abs(n[2]))))
+    if not (SLANT_MIN_DEG < tilt < 90 - SLANT_MIN_DEG):
+        return None
+    d = points @ n
+    on = np.abs(d - np.median(d)) < 2.0 * threshold
+    if on.mean() < LEAN_MIN_SHARE:
+        return None
+    level = np.cross([0.0, 0.0, 1.0], n)
+    level /= np.linalg.norm(level)
+    # a uniform spread of width w has deviation w / sqrt(12)
+    q = points[on] - points[on].mean(0)
+    cov = np.cov(np.c_[q @ level, q @ np.cross(n, level)].T)
+    width = np.sqrt(12.0 * max(float(np.linalg.eigvalsh(cov)[0]), 0.0))
+    if width < 2.0 * threshold / np.tan(np.radians(SLANT_MIN_DEG / 2)):
+        return None
+    return np.stack([n, level, np.cross(n, level)], axis=1)
+
+
 #: A box turned within its one seen face (standing on an edge or a corner, leaning): the
 #: face's minimum-area rectangle must be turned by more than :data:`SLANT_MIN_DEG` from
 #: upright, fill at least this share of itself with the face's points (counted on a grid
@@ -555,6 +593,8 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
     thr = plane_threshold if plane_threshold is not None else 1.0 * cell
     planes = dominant_planes(points, thr, rng)
     R = slant_frame(planes)
+    if R is None and len(planes) == 1:
+        R = lean_frame(points, planes[0], thr)
     if R is None and len(planes) == 1:
         R = face_turn_frame(points, planes[0], thr, cell)
     elif R is not None and normals is not None and (

@@ -766,3 +766,53 @@ def test_a_push_that_leaves_a_noise_gap_also_closes_it():
     assert CORNER_GAP < 0.03
     far = _strip_and_box(0.03)
     assert not any(len(o.extensions) == 2 for e in candidate_edges(far) for o in e.options)
+
+
+def _leaning_plank(lean_deg: float, slanted: bool = True) -> Arrangement:
+    """A 0.4 x 0.03 x 1.2 m plank leaning ``lean_deg`` on the wall y = 0, fitted as a
+    scan gives it: its foot cut 2 cm short (the floor band) and 1 cm off the wall."""
+    import dataclasses
+
+    from pipeline.model import box_corners, rotation_about_axis
+
+    R = rotation_about_axis(np.array([1.0, 0.0, 0.0]), np.radians(lean_deg))
+    size = np.array([0.40, 0.03, 1.18])
+    c = box_corners(np.zeros((1, 3)), R[None], size[None])[0]
+    # the foot on z = 0, 2 cm up the slope; the top 1 cm off the wall
+    centre = np.array([0.0, 0.0, -c[:, 2].min()]) + 0.02 * R[:, 2]
+    centre[1] = 0.01 - c[:, 1].min()
+    plank = box("plank", centre, size, R, object="plank")
+    if slanted:
+        plank = dataclasses.replace(plank, extra={"slanted": True})
+    wall = Support("wall:0", np.zeros(3), np.array([0.0, 1.0, 0.0]))
+    return Arrangement((plank,), (ground(), wall))
+
+
+@pytest.mark.parametrize("lean_deg", [20.0, 35.0])
+def test_a_leaning_plank_pushed_to_wall_and_floor_slides_up_the_wall(lean_deg):
+    """Each push is measured on the fitted box alone.  The push of the plank's back to
+    the wall lowers its foot too, so with the push of its foot to the floor the two
+    together would enter the floor by (wall push) x sin(lean), and the search could
+    only glue it to the wall.  A leaning box is lifted back onto the floor instead:
+    it leans on both by touch, like a ladder (it needs tan(lean) / 2 <= 0.36 of the
+    floor's friction, under 0.7)."""
+    from pipeline.contacts import find_contacts
+    from pipeline.extend import apply_offsets, offsets_of
+
+    arr = _leaning_plank(lean_deg)
+    edges = candidate_edges(arr)
+    pushes = [o.extensions[0] for e in edges for o in e.options if o.type == "touch"]
+    assert len(pushes) == 2
+    both = apply_offsets(arr, offsets_of(pushes, 1))
+    low = both.cuboids[0].corners()
+    assert low[:, 2].min() == pytest.approx(0.0, abs=1e-9)  # lifted: on, not in, the floor
+    assert low[:, 1].min() == pytest.approx(0.0, abs=1e-9)  # still on the wall
+    assert set(find_contacts(both).pairs) == {("plank", "ground"), ("plank", "wall:0")}
+    res = search(arr, edges, budget=5)
+    assert res.stable and res.n_fixed == 0
+    assert _types(res.arrangement) == {("ground", "plank"): "touch",
+                                       ("plank", "wall:0"): "touch"}
+    # an upright-fitted box is never lifted: its pushes are independent already
+    flat = _leaning_plank(lean_deg, slanted=False)
+    low = apply_offsets(flat, offsets_of(pushes, 1)).cuboids[0].corners()
+    assert low[:, 2].min() < -1e-3
