@@ -24,7 +24,8 @@ options cheapest first, so the first leaf reached is a greedy solution and later
 leaves only replace it when strictly cheaper; a node whose decided edges already cost
 as much as the best leaf is cut.  A greedy solution comes first (:meth:`_Group.greedy`:
 relax fixed to touch keeping extensions, then shed volume; then single-edge moves to
-cheaper options), so the bound prunes hard from the start; groups of up to
+cheaper options, joins swapped and glue moved along a chain of contacts), so the bound
+prunes hard from the start; groups of up to
 ``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  When the
 siblings step (:meth:`_Group.siblings`) gives hanging parts their siblings' support,
 single-edge moves to cheaper options are tried once more, keeping what that step
@@ -668,7 +669,7 @@ class _Group:
                     self.stats.budget_spent = True
                     break
             if not changed and time.perf_counter() < deadline:
-                for trial in self._join_swaps(current):
+                for trial in (*self._join_swaps(current), *self._glue_moves(current, deadline)):
                     c = self.cost(trial)
                     if c >= cost:
                         continue
@@ -678,6 +679,43 @@ class _Group:
                         current, cost, changed = trial, c, True
                         break
         return current
+
+    def _glue_moves(self, assignment: tuple[int, ...], deadline: float):
+        """Assignments that move glue along a chain: one edge next to a glued one (sharing
+        a box with it) becomes ``fixed``, then every other glued edge between different
+        objects in turn takes its cheapest option that still stands, a touch before none.  The greedy relaxes
+        edges in one order, and a shelf board's joint to the wall relaxed first while the
+        book on it was still glued to board and wall leaves two joints where one holds
+        both; no single-edge move gets there (adding the one raises the cost first)."""
+        glued = [lv for lv, (e, i) in enumerate(zip(self.edges, assignment))
+                 if self.options[lv][i].type == "fixed" and not e.same_object]
+        if not glued:
+            return
+        near = set()
+        for lv in glued:
+            e = self.edges[lv]
+            near |= {e.a, e.b}
+        for lv, e in enumerate(self.edges):
+            if (lv in glued or e.same_object or not {e.a, e.b} & near
+                    or time.perf_counter() > deadline):
+                continue
+            for i, o in enumerate(self.options[lv]):
+                if o.type != "fixed":
+                    continue
+                trial = list(assignment)
+                trial[lv] = i
+                for g in glued:  # a touch first, as the greedy's first pass does
+                    opts = self.options[g]
+                    for j in sorted((j for j, q in enumerate(opts) if q.type != "fixed"),
+                                    key=lambda j: opts[j].type != "touch"):
+                        t2 = list(trial)
+                        t2[g] = j
+                        self.stats.nodes += 1
+                        if self.evaluate(tuple(t2))[0]:
+                            trial = t2
+                            break
+                yield tuple(trial)
+                break
 
     def _join_swaps(self, assignment: tuple[int, ...]):
         """Assignments that move one extended join of two parts of an object to another

@@ -816,3 +816,25 @@ def test_a_leaning_plank_pushed_to_wall_and_floor_slides_up_the_wall(lean_deg):
     flat = _leaning_plank(lean_deg, slanted=False)
     low = apply_offsets(flat, offsets_of(pushes, 1)).cuboids[0].corners()
     assert low[:, 2].min() < -1e-3
+
+
+def test_glue_moves_to_the_one_joint_that_holds_a_board_and_the_book_on_it(monkeypatch):
+    """A shelf board hanging 3 cm off the wall with a book on it whose back is 2 cm off
+    the wall: one joint, board to wall, holds both (the truth of a wall shelf).  The
+    greedy relaxes the board's joint first, while the book is still glued to board and
+    wall, and is left with two; moving the glue along the chain finds the one.  (A
+    group this small is also searched exhaustively; here the greedy path alone, as for a
+    group of more than ``EXACT_MAX_EDGES`` edges.)"""
+    import pipeline.search as S
+
+    monkeypatch.setattr(S, "EXACT_MAX_EDGES", 0)
+    wall = Support("wall:0", np.zeros(3), np.array([1.0, 0.0, 0.0]))
+    board = box("board", (0.03 + 0.15, 0.0, 0.45), (0.30, 1.0, 0.026), object="board")
+    book = box("book", (0.02 + 0.1, 0.2, 0.463 + 0.02), (0.20, 0.05, 0.04), object="book")
+    arr = Arrangement((board, book), (wall,))  # the floor far below, seen empty
+    res = search(arr, candidate_edges(arr), budget=5)
+    assert res.stable and res.n_fixed == 1
+    assert _types(res.arrangement) == {("board", "wall:0"): "fixed", ("board", "book"): "touch"}
+    # the board was pushed the 3 cm to the wall, the book not
+    assert res.arrangement.cuboid("board").size[0] == pytest.approx(0.33, abs=1e-9)
+    np.testing.assert_allclose(res.arrangement.cuboid("book").size, [0.20, 0.05, 0.04])
