@@ -331,6 +331,10 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         extra = {"points": int(b.points)}
         if part_of[k] is not None:
             extra["instance"] = part_of[k]  # the segmentation's part id
+            # the parts the part -> object map names for its object, seen or not
+            named = sum(nm == names[k] for nm in scan.instance_objects.values())
+            if named > 1:
+                extra["object_parts"] = int(named)
         if b.slanted:
             extra["slanted"] = True
         cuboids.append(Cuboid(f"b{i}", b.center, b.rotation, b.size, object=names[k],

@@ -16,7 +16,10 @@ where its object ends within ``thin_fraction`` of its width behind it (a chair's
 seen from the front goes back to the seat's rear edge): furniture is built of thin
 panels, so what shows a panel's depth is the parts it is joined to (below), not a square
 footprint (a desk seen from the side became a block filling the hidden space under its
-top).  A part goes no deeper than its object's other parts span along that axis, nor
+top).  A part that is the only one seen of an object whose other parts the
+segmentation's part map names (``object_parts``: a sofa seen from behind shows its back
+alone) is such a panel too, and nothing seen says its depth: it is left as seen.  A part
+goes no deeper than its object's other parts span along that axis, nor
 further than they reach behind it; a flat slab of its own (thinner than
 ``thin_fraction`` of its width) no further than what it rests on and what rests on it
 (within ``rest_gap``) reach behind it: a plank on a block seen end-on is not a square.
@@ -305,6 +308,8 @@ def _face_on(arr, evidence, p: Params):
             if (not single_part(arr, c) and width >= p.thin_fraction * height
                     and height >= p.thin_fraction * width and reach > p.thin_fraction * width):
                 break  # a panel of furniture: its depth is what its joints say
+            if single_part(arr, c) and c.extra.get("object_parts", 1) > 1:
+                break  # the one seen panel of furniture whose other parts no view shows
             if abs(along) < np.cos(np.radians(p.face_on_part_deg)):
                 # seen obliquely: only a box of its own or a big face, and only a slab
                 # standing on its edge (not a keyboard seen from above)

@@ -238,6 +238,29 @@ def test_a_leg_seen_face_on_gets_depth_behind_it_up_to_its_width():
     assert ids == [] and out.cuboids[0] is side
 
 
+def test_the_one_seen_panel_of_furniture_whose_other_parts_no_view_shows_keeps_its_depth():
+    """A sofa seen from behind shows its back alone.  As a box of its own, 2 m wide and
+    seen 15 cm deep, it would get a square footprint (2 m deep, filling the seat and the
+    cushions with one block, IoU 0.1 with the back); the segmentation's part map names
+    the sofa's other parts, so it is one panel of furniture, and nothing seen says how
+    deep it is."""
+    import dataclasses
+
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -3.5, 0.8), (0.0, 0.0, 0.4))
+    back = box("back", (0.0, 0.1, 0.42), (2.0, 0.2, 0.84), object="sofa")
+    views = [DepthView(_depth_of_boxes([back], T, intr), intr, T)]
+    seen = box("back", (0.0, 0.075, 0.42), (2.0, 0.15, 0.84), object="sofa")
+    out, ids = deepen_thin_boxes(Arrangement((seen,), (ground(),)), views)
+    assert ids == ["back"] and out.cuboids[0].size[1] == pytest.approx(2.0)  # alone: a block
+    part = dataclasses.replace(seen, extra={"instance": 2, "object_parts": 8})
+    out, ids = deepen_thin_boxes(Arrangement((part,), (ground(),)), views)
+    assert ids == [] and out.cuboids[0] is part
+
+
 def _shelf_view(truth):
     from pipeline.camera import Intrinsics, look_at
     from pipeline.evidence import DepthView
