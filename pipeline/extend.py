@@ -8,9 +8,10 @@ Figure 7: unchanged, i extended to touch j, j extended to touch i, and each of t
 fused (``fixed``).  Every cuboid is also offered an extension to each support (ground
 and walls) that one of its faces looks at (hidden legs, bottoms and backs).  A push that
 brings the two over each other but leaves them a gap of sensor noise apart
-(:data:`CORNER_GAP`) along another face of the pushed box is offered with that face
-pushed across the gap too: a desk top seen only by its front edge, pushed back under the
-boxes fitted a few millimetres above it.
+(:func:`corner_gaps`) along another face of the pushed box is offered with that face
+pushed across the gap too, or with the other box's face across it: a desk top seen only
+by its front edge, pushed back under the boxes fitted a few millimetres above it; a
+plank pushed out over the far pier whose top the noise cut short.
 
 Geometry is carried as per-face offsets ``(K, 3, 2)`` (axis, negative/positive face,
 metres >= 0) on top of the initial boxes, so an arrangement for any combination of
@@ -49,7 +50,9 @@ SIDEWAYS_EXTENSION_REL = 1.5
 #: A face looks at a support when its outward normal is within 60 degrees of facing it.
 FACING_COS = 0.5
 #: A push that leaves the pair at most this far apart (metres, about three deviations of
-#: Kinect noise at 2 m) is offered with a second push of the face the gap faces.
+#: Kinect noise at 2 m) is offered with a second push of the face the gap faces; with
+#: cameras, at most three deviations of the depth noise at the pushed box's distance from
+#: the nearest one, if that is more (:func:`corner_gaps`).
 CORNER_GAP = 0.02
 #: ... when the gap's direction is within about 8 degrees of that face's normal.
 CORNER_COS = 0.99
@@ -244,15 +247,30 @@ def _overhangs(C, R, S, corners, i, j, axis, tol, max_ext) -> dict[int, list[Ext
     return out
 
 
+def corner_gaps(arr: Arrangement, eyes=()) -> np.ndarray:
+    """(K,) the largest gap a push may leave and still close along a second face, per
+    box: :data:`CORNER_GAP`, or three deviations of the depth noise
+    (:func:`pipeline.evidence.depth_noise`) at the box's distance from the nearest
+    camera centre in ``eyes`` when that is more.  A face seen at 3.5 m is placed to
+    within 6 cm; a gap that small between a plank and the pier under it is noise."""
+    gaps = np.full(len(arr.cuboids), CORNER_GAP)
+    if len(eyes) and len(gaps):
+        d = np.linalg.norm(arr.centers[:, None, :] - np.asarray(eyes, float)[None], axis=2)
+        gaps = np.maximum(gaps, 3.0 * depth_noise(d.min(axis=1)))
+    return gaps
+
+
 def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
-               overhang: bool = False) -> list[Edge]:
+               overhang: bool = False, eyes=()) -> list[Edge]:
     """Candidate edges between cuboids (Figure 7), vectorised over all nearby pairs
     (``same_object``: only the pairs of parts of one object, each edge as without).
 
     With ``overhang``, a pair of different objects already resting one on the other
     (contact normal near vertical) whose upper box hangs over a side face of the lower
     one is also offered that face pushed out under it (:func:`_overhangs`), as ``touch``
-    and ``fixed``: the lower box's far part may be hidden by the box on it."""
+    and ``fixed``: the lower box's far part may be hidden by the box on it.  ``eyes``:
+    the camera centres, for the gaps a push may close along a second face
+    (:func:`corner_gaps`)."""
     K = len(arr.cuboids)
     if K < 2:
         return []
@@ -312,7 +330,7 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
         # sensor noise apart (a desk top seen by its front edge pushed back under the
         # boxes on it, their bottoms fitted a few millimetres above its top) closes that
         # gap with the face it faces: both pushes together are one option
-        q = np.nonzero(~good & (s2 > tol[P]) & (s2 <= CORNER_GAP))[0]
+        q = gap = np.nonzero(~good & (s2 > tol[P]) & (s2 <= corner_gaps(arr, eyes)[src]))[0]
         dots = np.einsum("qji,qj->qi", R[src[q]], n2[q])  # the gap's axis in the box's axes
         ax2 = np.argmax(np.abs(dots), axis=1)
         cos2 = dots[np.arange(len(q)), ax2]
@@ -329,6 +347,27 @@ def pair_edges(arr: Arrangement, max_ext: float, same_object: bool = False,
                 by_pair.setdefault(p, []).append(
                     (Extension(a, ax, side, length),
                      Extension(a, int(ax2[m]), int(side2[m]), float(s2[n]))))
+        # ... or the other box's face across it: the noise may have cut either one (a
+        # pier's top fitted short under the plank pushed out over it)
+        dd = np.einsum("qji,qj->qi", R[dst[gap]], -n2[gap])  # towards the pushed box
+        axd = np.argmax(np.abs(dd), axis=1)
+        cosd = dd[np.arange(len(gap)), axd]
+        for m, n in enumerate(gap.tolist()):
+            if abs(cosd[m]) < CORNER_COS:
+                continue
+            p, _, ax, side, length = exts[n]
+            a, b = int(src[n]), int(dst[n])
+            offd = np.zeros((3, 2))
+            offd[axd[m], int(cosd[m] > 0)] = s2[n]
+            ca = C[a] + R[a] @ ((off[n][:, 1] - off[n][:, 0]) / 2.0)
+            cb = C[b] + R[b] @ ((offd[:, 1] - offd[:, 0]) / 2.0)
+            sep3, _, _ = sat_separation(ca[None], R[a][None], ((S[a] + off[n].sum(1)) / 2)[None],
+                                        cb[None], R[b][None], ((S[b] + offd.sum(1)) / 2)[None],
+                                        tol[P[n]][None])
+            if abs(sep3[0]) <= tol[P[n]]:
+                by_pair.setdefault(p, []).append(
+                    (Extension(a, ax, side, length),
+                     Extension(b, int(axd[m]), int(cosd[m] > 0), float(s2[n]))))
     over: dict[int, list[Extension]] = {}
     if overhang and touching.any():
         objects = [c.object for c in arr.cuboids]
@@ -392,11 +431,11 @@ def support_edges(arr: Arrangement, max_ext: float) -> list[Edge]:
     return edges
 
 
-def candidate_edges(arr: Arrangement, max_ext: float | None = None) -> list[Edge]:
-    """All candidate edges of ``arr`` (pairs and supports)."""
+def candidate_edges(arr: Arrangement, max_ext: float | None = None, eyes=()) -> list[Edge]:
+    """All candidate edges of ``arr`` (pairs and supports); ``eyes``: camera centres."""
     if max_ext is None:
         max_ext = MAX_EXTENSION_REL * arr.scale_length()
-    edges, _ = prune_penetrating(arr, pair_edges(arr, max_ext, overhang=True)
+    edges, _ = prune_penetrating(arr, pair_edges(arr, max_ext, overhang=True, eyes=eyes)
                                  + support_edges(arr, max_ext))
     return edges
 

@@ -114,7 +114,8 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     timings["complete"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    edges = candidate_edges(arr)
+    eyes = [v.eye for v in evidence.views]
+    edges = candidate_edges(arr, eyes=eyes)
     report.candidate_options = sum(len(e.options) for e in edges)
     edges, report.rejected_by_visibility = prune_by_visibility(
         arr, edges, list(evidence.views), evidence.margin)
@@ -133,8 +134,8 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
             break
         aside += [c for c in arr.cuboids if c.id in bad]
         arr = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id not in bad))
-        edges, _ = prune_by_visibility(arr, candidate_edges(arr), list(evidence.views),
-                                       evidence.margin)
+        edges, _ = prune_by_visibility(arr, candidate_edges(arr, eyes=eyes),
+                                       list(evidence.views), evidence.margin)
         left = budget - (time.perf_counter() - t0)
         if left < 0.1 * budget:  # no time for another search: keep the best effort
             break

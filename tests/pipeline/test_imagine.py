@@ -1066,9 +1066,9 @@ def test_a_join_never_grows_through_space_seen_empty():
 def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
     # a desk's side panel stands 2 mm past the end of the top (fitted short) and 5.5 cm
     # below it: neither growing the panel up nor the top down makes them meet.  The join
-    # with the least added volume pushes the panel up to the top's underside and its
-    # face the 2 mm gap faces over to the top's end (both pushes one candidate,
-    # pipeline.extend.CORNER_GAP); the top keeps its size; a panel of another object
+    # with the least added volume pushes the panel up to the top's underside and closes
+    # the 2 mm gap by the top's end (3.6 cm3), not by the panel's face (700 cm3): both
+    # pushes are one candidate (pipeline.extend.corner_gaps); a panel of another object
     # there is left alone
 
     top = box("top", (0, 0, 0.73), (1.2, 0.6, 0.03), object="desk")
@@ -1076,9 +1076,10 @@ def test_a_panel_just_past_the_end_of_its_top_is_joined_across_the_corner():
     out, joined = join_parts(Arrangement((top, panel), (ground(),)))
     assert joined == ["top+panel"]
     t, p = out.cuboid("top"), out.cuboid("panel")
-    np.testing.assert_allclose(t.size, top.size, atol=1e-12)
-    np.testing.assert_allclose(t.center, top.center, atol=1e-12)
-    assert p.center[0] + p.size[0] / 2 == pytest.approx(-0.6, abs=1e-9)  # 2 mm over
+    np.testing.assert_allclose(t.size, [1.202, 0.6, 0.03], atol=1e-12)
+    assert t.center[0] - t.size[0] / 2 == pytest.approx(-0.602, abs=1e-9)  # 2 mm over
+    assert t.center[0] + t.size[0] / 2 == pytest.approx(0.6, abs=1e-9)
+    assert p.center[0] + p.size[0] / 2 == pytest.approx(-0.602, abs=1e-9)  # as fitted
     assert p.center[0] - p.size[0] / 2 == pytest.approx(-0.612, abs=1e-9)
     assert p.center[2] + p.size[2] / 2 == pytest.approx(0.715, abs=1e-9)  # up 5.5 cm
     assert p.center[2] - p.size[2] / 2 == pytest.approx(0.0, abs=1e-9)

@@ -750,8 +750,14 @@ def test_a_push_that_leaves_a_noise_gap_also_closes_it():
 
     arr = _strip_and_box(0.007)
     edge = next(e for e in candidate_edges(arr) if {e.a, e.b} == {0, 2})
-    two = [o for o in edge.options if len(o.extensions) == 2 and o.extensions[0].box == 0]
+    two = [o for o in edge.options if len(o.extensions) == 2
+           and {x.box for x in o.extensions} == {0}]
     assert sorted(o.type for o in two) == ["fixed", "touch"]
+    # or the item's bottom comes down the 7 mm to the pushed top
+    other = [o.extensions for o in edge.options if len(o.extensions) == 2
+             and [x.box for x in o.extensions] == [0, 2]]
+    assert len(other) == 2 and all((x[1].axis, x[1].side) == (2, 0)
+                                   and x[1].length == pytest.approx(0.007) for x in other)
     back, up = two[0].extensions
     assert (back.box, back.axis, back.side) == (0, 1, 1)
     assert back.length == pytest.approx(0.18, abs=1e-9)  # from y = -0.28 to -0.1
@@ -761,7 +767,8 @@ def test_a_push_that_leaves_a_noise_gap_also_closes_it():
     cs = find_contacts(out)
     assert ("top", "item") in cs.pairs and not cs.penetrations
     # the box's own option: its front face pushed to the top and its bottom down to it
-    mine = [o for o in edge.options if len(o.extensions) == 2 and o.extensions[0].box == 2]
+    mine = [o for o in edge.options if len(o.extensions) == 2
+            and {x.box for x in o.extensions} == {2}]
     assert {(x.axis, x.side) for x in mine[0].extensions} == {(1, 0), (2, 0)}
     assert CORNER_GAP < 0.03
     far = _strip_and_box(0.03)
@@ -838,3 +845,31 @@ def test_glue_moves_to_the_one_joint_that_holds_a_board_and_the_book_on_it(monke
     # the board was pushed the 3 cm to the wall, the book not
     assert res.arrangement.cuboid("board").size[0] == pytest.approx(0.33, abs=1e-9)
     np.testing.assert_allclose(res.arrangement.cuboid("book").size, [0.20, 0.05, 0.04])
+
+
+def test_a_plank_reaches_the_far_pier_whose_top_the_noise_cut_and_both_close_the_gap():
+    """A plank on two piers seen from 3.5 m along its length: its far end is hidden and
+    the far pier's top, under the plank, was fitted 3 cm short.  Pushed out over the far
+    pier, the plank is left 3 cm above it: within three deviations of the depth noise
+    there (4.8 cm), so the gap is closed too, by the pier's top (the plank's bottom
+    cannot move: it rests on the near pier).  The plank then rests on both by touch."""
+    from pipeline.extend import corner_gaps
+
+    near = box("near", (0.0, -0.6, 0.35), (0.4, 0.4, 0.7), object="near")
+    far = box("far", (0.0, 0.6, 0.335), (0.4, 0.4, 0.67), object="far")
+    plank = box("plank", (0.0, -0.3, 0.715), (0.5, 1.0, 0.03), object="plank")
+    arr = Arrangement((near, far, plank), (ground(),))
+    eye = np.array([0.0, -3.5, 1.2])
+    assert corner_gaps(arr, [eye])[2] == pytest.approx(3 * (0.0012 + 0.0019 * (
+        np.linalg.norm(plank.center - eye) - 0.4) ** 2))
+    assert corner_gaps(arr, [eye])[2] > 0.03 > corner_gaps(arr)[2]
+    res = search(arr, candidate_edges(arr, eyes=[eye]), budget=5)
+    assert res.stable and res.n_fixed == 0
+    assert _types(res.arrangement) == {("near", "plank"): "touch", ("far", "plank"): "touch",
+                                       ("ground", "near"): "touch", ("far", "ground"): "touch"}
+    out = res.arrangement
+    assert out.cuboid("far").size[2] == pytest.approx(0.70)  # the pier's top went up 3 cm
+    assert out.cuboid("plank").corners()[:, 1].max() == pytest.approx(0.4)  # over the pier
+    # with the noise of 2 m no option closes the gap: the plank never reaches the far pier
+    blind = search(arr, candidate_edges(arr), budget=5)
+    assert ("far", "plank") not in _types(blind.arrangement)
