@@ -682,11 +682,12 @@ class _Group:
 
     def _glue_moves(self, assignment: tuple[int, ...], deadline: float):
         """Assignments that move glue along a chain: one edge next to a glued one (sharing
-        a box with it) becomes ``fixed``, then every other glued edge between different
-        objects in turn takes its cheapest option that still stands, a touch before none.  The greedy relaxes
-        edges in one order, and a shelf board's joint to the wall relaxed first while the
-        book on it was still glued to board and wall leaves two joints where one holds
-        both; no single-edge move gets there (adding the one raises the cost first)."""
+        a box or a support with it) becomes ``fixed``, then every other glued edge
+        between different objects in turn takes its cheapest option that still stands, a
+        touch before none.  The greedy relaxes edges in one order, and a shelf board's
+        joint to the wall relaxed first while the book on it was still glued to board
+        and wall leaves two joints where one holds both; no single-edge move gets there
+        (adding the one raises the cost first)."""
         glued = [lv for lv, (e, i) in enumerate(zip(self.edges, assignment))
                  if self.options[lv][i].type == "fixed" and not e.same_object]
         if not glued:
