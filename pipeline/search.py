@@ -682,9 +682,9 @@ class _Group:
 
     def _glue_moves(self, assignment: tuple[int, ...], deadline: float):
         """Assignments that move glue along a chain: one edge next to a glued one (sharing
-        a box or a support with it) becomes ``fixed``, then every other glued edge
-        between different objects in turn takes its cheapest option that still stands, a
-        touch before none.  The greedy relaxes edges in one order, and a shelf board's
+        a box or a support with it) becomes ``fixed``, then every glued edge between
+        different objects next to it in turn takes its cheapest option that still stands,
+        a touch before none.  The greedy relaxes edges in one order, and a shelf board's
         joint to the wall relaxed first while the book on it was still glued to board
         and wall leaves two joints where one holds both; no single-edge move gets there
         (adding the one raises the cost first)."""
@@ -705,7 +705,10 @@ class _Group:
                     continue
                 trial = list(assignment)
                 trial[lv] = i
+                ends = {e.a, e.b}
                 for g in glued:  # a touch first, as the greedy's first pass does
+                    if not {self.edges[g].a, self.edges[g].b} & ends:
+                        continue
                     opts = self.options[g]
                     for j in sorted((j for j, q in enumerate(opts) if q.type != "fixed"),
                                     key=lambda j: opts[j].type != "touch"):
