@@ -342,6 +342,38 @@ def same_part(a: Cuboid, b: Cuboid) -> bool:
 
 
 # ------------------------------------------------------------------ objects and groups
+#: :func:`same_column`: footprints within this fraction, tops within this fraction of
+#: the taller box's height (and at least SAME_TOP_ABS metres).
+SAME_FOOTPRINT_REL = 0.1
+SAME_TOP_REL = 0.05
+SAME_TOP_ABS = 0.02
+
+
+def observed_footprint(c: Cuboid) -> np.ndarray:
+    """Sorted horizontal extents of an upright box as the sensor saw it (its observed box
+    when it has one: extensions and deepening guess at what was not seen)."""
+    size = c.observed.size if c.observed is not None else c.size
+    up = int(np.argmax(np.abs(c.rotation[2])))
+    return np.sort(np.delete(np.asarray(size, float), up))
+
+
+def same_column(me: Cuboid, other: Cuboid) -> bool:
+    """Whether two upright parts are the same column seen differently: one footprint
+    (within :data:`SAME_FOOTPRINT_REL`) and one top height (within :data:`SAME_TOP_REL`
+    of the taller part's height).  A sofa's far arm, seen only over its top
+    15 cm behind the cushions, is its near arm's twin that the sensor saw whole."""
+    for c in (me, other):
+        if abs(c.rotation[2, int(np.argmax(np.abs(c.rotation[2])))]) < 0.99:
+            return False
+    fa, fb = observed_footprint(me), observed_footprint(other)
+    if not np.allclose(fa, fb, rtol=SAME_FOOTPRINT_REL):
+        return False
+    top_a = float(me.center[2] + np.abs(me.rotation[2]) @ me.size / 2)
+    top_b = float(other.center[2] + np.abs(other.rotation[2]) @ other.size / 2)
+    tall = max(float(np.abs(me.rotation[2]) @ me.size), float(np.abs(other.rotation[2]) @ other.size))
+    return abs(top_a - top_b) <= max(SAME_TOP_ABS, SAME_TOP_REL * tall)
+
+
 def single_part(arr: Arrangement, c: Cuboid) -> bool:
     """Whether ``c`` is the only part of its object (or has no object)."""
     return c.object is None or not any(o.object == c.object and o.id != c.id

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .boxops import same_column
 from .contacts import (
     ContactSet,
     changed_cuboids,
@@ -610,7 +611,7 @@ class _Group:
                 if me.object is None or me.object != other.object:
                     continue
                 alike = (np.allclose(np.sort(me.size), np.sort(other.size), rtol=0.1)
-                         or _same_column(me, other))
+                         or same_column(me, other))
                 want = fopts[current[m]].type
                 done = False
                 for i, o in enumerate(opts):
@@ -746,38 +747,6 @@ class _Group:
                         trial = list(assignment)
                         trial[lv], trial[other] = apart[0], i
                         yield tuple(trial)
-
-
-#: :func:`_same_column`: footprints within this fraction, tops within this fraction of
-#: the taller box's height (and at least SAME_TOP_ABS metres).
-SAME_FOOTPRINT_REL = 0.1
-SAME_TOP_REL = 0.05
-SAME_TOP_ABS = 0.02
-
-
-def _footprint(c) -> np.ndarray:
-    """Sorted horizontal extents of an upright box as the sensor saw it (its observed box
-    when it has one: extensions and deepening guess at what was not seen)."""
-    size = c.observed.size if c.observed is not None else c.size
-    up = int(np.argmax(np.abs(c.rotation[2])))
-    return np.sort(np.delete(np.asarray(size, float), up))
-
-
-def _same_column(me, other) -> bool:
-    """Whether two upright parts are the same column seen differently: one footprint
-    (within :data:`SAME_FOOTPRINT_REL`) and one top height (within :data:`SAME_TOP_REL`
-    of the taller part's height).  A sofa's far arm, seen only over its top
-    15 cm behind the cushions, is its near arm's twin that the sensor saw whole."""
-    for c in (me, other):
-        if abs(c.rotation[2, int(np.argmax(np.abs(c.rotation[2])))]) < 0.99:
-            return False
-    fa, fb = _footprint(me), _footprint(other)
-    if not np.allclose(fa, fb, rtol=SAME_FOOTPRINT_REL):
-        return False
-    top_a = float(me.center[2] + np.abs(me.rotation[2]) @ me.size / 2)
-    top_b = float(other.center[2] + np.abs(other.rotation[2]) @ other.size / 2)
-    tall = max(float(np.abs(me.rotation[2]) @ me.size), float(np.abs(other.rotation[2]) @ other.size))
-    return abs(top_a - top_b) <= max(SAME_TOP_ABS, SAME_TOP_REL * tall)
 
 
 def _groups(K: int, edges: list[Edge]) -> list[tuple[list[int], list[Edge]]]:
