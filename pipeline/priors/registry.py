@@ -19,6 +19,7 @@ from .object_yaw import PRIOR as _object_yaw
 from .overlaps import PRIOR as _overlaps
 from .relax_glue import PRIOR as _relax_glue
 from .rows import PRIOR as _rows
+from .span import PRIOR as _span
 from .support_yaw import PRIOR as _support_yaw
 from .upright import PRIOR as _upright
 from .yaw_fit import PRIOR as _yaw_fit
@@ -26,7 +27,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 #: Every prior, in the order they run (stage by stage).
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
-    _deepen, _join_parts, _rows, _mirror, _copies,
+    _deepen, _span, _join_parts, _rows, _mirror, _copies,
     _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.

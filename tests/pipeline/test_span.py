@@ -1,0 +1,72 @@
+"""The ``span`` prior: a board or panel whose end no view saw runs across its object."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pipeline.camera import Intrinsics, look_at
+from pipeline.evidence import DepthView
+from pipeline.model import Arrangement, box, ground
+from tests.pipeline.priors_util import changed
+from tests.pipeline.test_imagine import _depth_of_boxes
+
+EYE = (0.0, -3.5, 1.0)
+SEAT = box("seat", (0.0, 0.0, 0.2), (1.9, 0.7, 0.4), object="sofa")
+BACK = box("back", (0.0, 0.425, 0.5), (1.9, 0.15, 1.0), object="sofa")
+#: another object in front of the sofa's left end: it hides the back there
+CABINET = box("cabinet", (-0.6, -0.8, 0.8), (0.7, 0.3, 1.6), object="cabinet")
+#: a wall behind, so that every ray the sofa lets through ends on something
+BACKDROP = box("backdrop", (0.0, 1.2, 1.5), (6.0, 0.1, 3.0))
+#: the back as one view sees it past the cabinet: x from -0.36 to 0.95
+SEEN_BACK = box("back", (0.295, 0.425, 0.5), (1.31, 0.15, 1.0), object="sofa")
+
+
+def _views(truth):
+    intr = Intrinsics.kinect_v1()
+    T = look_at(EYE, (0.0, 0.0, 0.4))
+    return [DepthView(_depth_of_boxes([*truth, BACKDROP], T, intr, far=8.0), intr, T)]
+
+
+def test_a_back_hidden_at_one_end_runs_to_where_its_seat_reaches():
+    """The cabinet hides the left 0.59 m of the sofa's back; the seat reaches there, and
+    no view saw the space empty, so the back runs the whole length of its sofa."""
+    arr = Arrangement((SEAT, SEEN_BACK, CABINET), (ground(),))
+    out, ids = changed("span", arr, _views([SEAT, BACK, CABINET]))
+    assert ids == ["back"]
+    got = out.cuboid("back")
+    np.testing.assert_allclose(got.size, BACK.size, atol=1e-9)
+    np.testing.assert_allclose(got.center, BACK.center, atol=1e-9)
+
+
+def test_a_back_whose_end_a_view_saw_keeps_it():
+    """The back really ends at x = -0.36 and nothing hides the space beyond: the view saw
+    it empty, so the seat's reach says nothing about the back."""
+    arr = Arrangement((SEAT, SEEN_BACK), (ground(),))
+    out, ids = changed("span", arr, _views([SEAT, SEEN_BACK]))
+    assert ids == [] and out.cuboid("back") is SEEN_BACK
+
+
+def test_a_board_stops_at_the_side_panel_it_meets_and_a_leg_is_no_panel():
+    """A shelf's board seen short of its left side panel grows to the panel's inner face,
+    not through it nor in under it to the shelf's outer edge; a square leg of a table under a wider top is
+    no board and keeps its footprint."""
+    left = box("left", (-0.4, 0.0, 0.5), (0.03, 0.3, 1.0), object="shelf")
+    right = box("right", (0.4, 0.0, 0.5), (0.03, 0.3, 1.0), object="shelf")
+    board = box("board", (0.1, 0.0, 0.5), (0.57, 0.3, 0.02), object="shelf")
+    out, ids = changed("span", Arrangement((left, right, board), (ground(),)))
+    assert ids == ["board"]
+    got = out.cuboid("board")
+    np.testing.assert_allclose(got.size, [0.77, 0.3, 0.02], atol=1e-9)
+    np.testing.assert_allclose(got.center, [0.0, 0.0, 0.5], atol=1e-9)
+    # the bottom board: its side panels, fitted down to its top, stand beside it on the
+    # floor, so it stops at the left one rather than running in under it
+    left = box("left", (-0.4, 0.0, 0.535), (0.03, 0.3, 0.93), object="shelf")
+    right = box("right", (0.4, 0.0, 0.535), (0.03, 0.3, 0.93), object="shelf")
+    bottom = box("board", (0.1, 0.0, 0.06), (0.57, 0.3, 0.02), object="shelf")
+    out, ids = changed("span", Arrangement((left, right, bottom), (ground(),)))
+    assert ids == ["board"]
+    np.testing.assert_allclose(out.cuboid("board").size, [0.77, 0.3, 0.02], atol=1e-9)
+    top = box("top", (0.0, 0.0, 0.75), (1.2, 0.8, 0.03), object="table")
+    leg = box("leg", (0.55, 0.35, 0.37), (0.05, 0.05, 0.74), object="table")
+    out, ids = changed("span", Arrangement((top, leg), (ground(),)))
+    assert ids == [] and out.cuboid("leg") is leg
