@@ -27,7 +27,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 #: Every prior, in the order they run (stage by stage).
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
-    _deepen, _span, _join_parts, _rows, _mirror, _copies,
+    _deepen, _join_parts, _span, _rows, _mirror, _copies,
     _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.
