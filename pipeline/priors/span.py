@@ -13,8 +13,9 @@ at its side panel), whichever is furthest without entering a part of its object 
 sliding in under one it was not under (a side panel stands on the floor, not on the
 bottom board), through space no view saw empty
 (:data:`pipeline.evidence.FREE_FRACTION_MAX`).  A part whose end a view saw (the space
-beyond it seen empty) keeps it.  The gate rejects a growth into another object.  It runs after ``join_parts``: a leg seen only at its foot
-is a flat stub until it is reached up to its seat, and no board.
+beyond it seen empty) keeps it.  The gate rejects a growth into another object.  It
+runs after ``join_parts``: a leg seen only at its foot is a flat stub, and no board,
+until it is reached up to its seat.
 """
 
 from __future__ import annotations
