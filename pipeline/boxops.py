@@ -233,6 +233,13 @@ def extent_along(c: Cuboid, u: np.ndarray) -> tuple[float, float]:
     return m - half, m + half
 
 
+def overlap_along(a: Cuboid, b: Cuboid, u: np.ndarray) -> float:
+    """How far the extents of ``a`` and ``b`` along the unit vector ``u`` overlap
+    (metres; negative: the gap between them)."""
+    (a0, a1), (b0, b1) = extent_along(a, u), extent_along(b, u)
+    return min(a1, b1) - max(a0, b0)
+
+
 def upright_extent(c: Cuboid) -> tuple[float, float]:
     """(height, largest horizontal extent) of a box, from its axes' z components."""
     ax = up_axis(c)
@@ -353,8 +360,7 @@ def observed_footprint(c: Cuboid) -> np.ndarray:
     """Sorted horizontal extents of an upright box as the sensor saw it (its observed box
     when it has one: extensions and deepening guess at what was not seen)."""
     size = c.observed.size if c.observed is not None else c.size
-    up = int(np.argmax(np.abs(c.rotation[2])))
-    return np.sort(np.delete(np.asarray(size, float), up))
+    return np.sort(np.delete(np.asarray(size, float), up_axis(c)))
 
 
 def same_column(me: Cuboid, other: Cuboid) -> bool:
@@ -362,15 +368,13 @@ def same_column(me: Cuboid, other: Cuboid) -> bool:
     (within :data:`SAME_FOOTPRINT_REL`) and one top height (within :data:`SAME_TOP_REL`
     of the taller part's height).  A sofa's far arm, seen only over its top
     15 cm behind the cushions, is its near arm's twin that the sensor saw whole."""
-    for c in (me, other):
-        if abs(c.rotation[2, int(np.argmax(np.abs(c.rotation[2])))]) < 0.99:
-            return False
+    if any(abs(c.rotation[2, up_axis(c)]) < 0.99 for c in (me, other)):
+        return False
     fa, fb = observed_footprint(me), observed_footprint(other)
     if not np.allclose(fa, fb, rtol=SAME_FOOTPRINT_REL):
         return False
-    top_a = float(me.center[2] + np.abs(me.rotation[2]) @ me.size / 2)
-    top_b = float(other.center[2] + np.abs(other.rotation[2]) @ other.size / 2)
-    tall = max(float(np.abs(me.rotation[2]) @ me.size), float(np.abs(other.rotation[2]) @ other.size))
+    (_, top_a), (_, top_b) = extent_along(me, UP), extent_along(other, UP)
+    tall = max(float(np.abs(c.rotation[2]) @ c.size) for c in (me, other))
     return abs(top_a - top_b) <= max(SAME_TOP_ABS, SAME_TOP_REL * tall)
 
 

@@ -28,6 +28,7 @@ from ..boxops import (
     extent_along,
     horizontal_axes,
     is_upright,
+    overlap_along,
     pushed,
     separations,
     z_range,
@@ -41,12 +42,6 @@ from .base import Edit, Prior, principle_of
 class Params:
     panel_ratio: float = 3.0  #: a board's thickness is at most its next extent over this
     min_reach: float = 0.03  #: metres the object must reach past the part's end
-
-
-def _overlap(a, b, u: np.ndarray) -> float:
-    """How far the extents of boxes ``a`` and ``b`` along ``u`` overlap (metres)."""
-    (a0, a1), (b0, b1) = extent_along(a, u), extent_along(b, u)
-    return min(a1, b1) - max(a0, b0)
 
 
 def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
@@ -82,8 +77,9 @@ def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
             if np.any(sep < -tol):
                 continue  # into a part of its object
             # nor in under one it was not under before (it would carry it)
-            if any(z_range(q)[0] >= z_range(grown)[1] - t and _overlap(c, q, u) <= t
-                   and _overlap(grown, q, u) > t and _overlap(grown, q, w) > t
+            top = z_range(grown)[1]
+            if any(z_range(q)[0] >= top - t and overlap_along(c, q, u) <= t
+                   and overlap_along(grown, q, u) > t and overlap_along(grown, q, w) > t
                    for q, t in zip(sub.cuboids, tol)):
                 continue
             out.append((ax, side, length))

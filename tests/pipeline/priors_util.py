@@ -46,6 +46,14 @@ def changed(names, arr, views=None, margin: float = 0.0, **kw):
     return out, ids
 
 
+def assert_box(got, size, center) -> None:
+    """``got`` has the ``size`` and ``center`` given (to 1e-9 m)."""
+    import numpy as np
+
+    np.testing.assert_allclose(got.size, size, atol=1e-9)
+    np.testing.assert_allclose(got.center, center, atol=1e-9)
+
+
 def accepted(report: EditLog, prior: str | None = None):
     """The accepted :class:`pipeline.imagine.EditRecord` s (of ``prior``)."""
     return [e for e in report.edits if e.accepted and (prior is None or e.prior == prior)]

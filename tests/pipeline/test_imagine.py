@@ -17,6 +17,7 @@ from pipeline.priors import close_gaps, copies, deepen
 from pipeline.stability import check_stability
 from tests.pipeline.priors_util import (
     accepted,
+    assert_box,
     changed,
     closed_pairs,
     joined_pairs,
@@ -282,8 +283,7 @@ def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
     out, ids = deepen_thin_boxes(arr, _shelf_view([left, right, board]))
     assert ids == ["left"]
     got = out.cuboid("left")
-    np.testing.assert_allclose(got.size, [0.03, 0.3, 1.0], atol=1e-9)
-    np.testing.assert_allclose(got.center, left.center, atol=1e-9)
+    assert_box(got, [0.03, 0.3, 1.0], left.center)
     # a post really 3 cm deep: the view saw the space behind it empty
     post = box("left", (-0.265, -0.135, 0.5), (0.03, 0.03, 1.0), object="shelf")
     out, ids = deepen_thin_boxes(arr, _shelf_view([post, right, board]))
@@ -316,8 +316,7 @@ def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     out, ids = deepen_thin_boxes(arr, view([upper, lower]))
     assert ids == ["lower"]
     got = out.cuboid("lower")
-    np.testing.assert_allclose(got.size, lower.size, atol=1e-9)
-    np.testing.assert_allclose(got.center, lower.center, atol=1e-9)
+    assert_box(got, lower.size, lower.center)
     # the face-on rule alone would not have moved it: the twin rule did
     edits = [e for e in run("deepen", arr, view([upper, lower]))[1].edits if e.accepted]
     assert [e.reason.split(":")[0] for e in edits] == ["as deep as a twin board of its object"]
@@ -1105,8 +1104,7 @@ def test_a_leg_that_lost_its_upper_end_reaches_up_to_its_top():
     out, joined = join_parts(arr, views=_shelf_view([top, *legs]))
     assert joined == ["leg3+top"]
     got = out.cuboid("leg3")
-    np.testing.assert_allclose(got.size, [0.04, 0.04, 0.7], atol=1e-9)
-    np.testing.assert_allclose(got.center, legs[3].center, atol=1e-9)
+    assert_box(got, [0.04, 0.04, 0.7], legs[3].center)
     np.testing.assert_allclose(out.cuboid("top").center, top.center, atol=1e-12)
     np.testing.assert_allclose(out.cuboid("top").size, top.size, atol=1e-12)
     assert ("top", "leg3") in find_contacts(out).pairs
@@ -1139,8 +1137,7 @@ def test_a_part_whose_lower_end_was_hidden_reaches_the_floor():
     out, ids = changed("join_parts", arr, _shelf_view([top, left, right]))
     assert ids == ["right"]
     got = out.cuboid("right")
-    np.testing.assert_allclose(got.size, right.size, atol=1e-9)
-    np.testing.assert_allclose(got.center, right.center, atol=1e-9)
+    assert_box(got, right.size, right.center)
     assert ("right", "ground") in find_contacts(out).pairs
     # a part that hangs: the view saw the space under it empty
     out, ids = changed("join_parts", arr, _shelf_view([top, left, lost]))

@@ -7,7 +7,7 @@ import numpy as np
 from pipeline.camera import Intrinsics, look_at
 from pipeline.evidence import DepthView
 from pipeline.model import Arrangement, box, ground
-from tests.pipeline.priors_util import changed
+from tests.pipeline.priors_util import assert_box, changed
 from tests.pipeline.test_imagine import _depth_of_boxes
 
 EYE = (0.0, -3.5, 1.0)
@@ -34,8 +34,7 @@ def test_a_back_hidden_at_one_end_runs_to_where_its_seat_reaches():
     out, ids = changed("span", arr, _views([SEAT, BACK, CABINET]))
     assert ids == ["back"]
     got = out.cuboid("back")
-    np.testing.assert_allclose(got.size, BACK.size, atol=1e-9)
-    np.testing.assert_allclose(got.center, BACK.center, atol=1e-9)
+    assert_box(got, BACK.size, BACK.center)
 
 
 def test_a_back_whose_end_a_view_saw_keeps_it():
@@ -56,8 +55,7 @@ def test_a_board_stops_at_the_side_panel_it_meets_and_a_leg_is_no_panel():
     out, ids = changed("span", Arrangement((left, right, board), (ground(),)))
     assert ids == ["board"]
     got = out.cuboid("board")
-    np.testing.assert_allclose(got.size, [0.77, 0.3, 0.02], atol=1e-9)
-    np.testing.assert_allclose(got.center, [0.0, 0.0, 0.5], atol=1e-9)
+    assert_box(got, [0.77, 0.3, 0.02], [0.0, 0.0, 0.5])
     # the bottom board: its side panels, fitted down to its top, stand beside it on the
     # floor, so it stops at the left one rather than running in under it
     left = box("left", (-0.4, 0.0, 0.535), (0.03, 0.3, 0.93), object="shelf")
