@@ -4,8 +4,11 @@ Evidence: the segmentation's objects, their parts' positions under their top, an
 depth views.  Regularity: furniture is symmetric.  An object with a top (its part of
 largest horizontal area) and two or three legs under it (upright parts taller than wide,
 at most ``leg_max_width`` of the top's narrower side) in distinct quadrants of the top
-gets the missing legs: the diagonally opposite leg turned half a turn about the top's
-vertical axis (independent of the top's yaw), or a neighbouring quadrant's leg mirrored.
+gets the missing legs.  With three seen, the fourth completes their parallelogram (the
+legs stand at the corners of a rectangle, and three of them place the fourth without the
+top, whose far strip may be lost or imagined); with two, the diagonally opposite leg
+turned half a turn about the top's vertical axis (independent of the top's yaw), or a
+neighbouring quadrant's leg mirrored.
 With both legs seen at one end, the top first grows to where a view saw past its far
 edge (in steps of ``edge_step``, by at most ``edge_max_rel``), and no legs are copied
 when no view saw past it and another object hides ``edge_hidden_min`` of the strip
@@ -213,6 +216,12 @@ def apply(arr, evidence, p: Params, ctx):
                 continue
             pos = local[src].copy()
             pos[list(flips)] = -pos[list(flips)]
+            sides = [next((n for n, q in enumerate(quads) if q == want), None)
+                     for want in ((missing[0], -missing[1]), (-missing[0], missing[1]))]
+            if flips == (0, 1) and None not in sides:
+                # three legs seen: the fourth completes their parallelogram (the seen
+                # legs place it, not the top's centre, whose far edge may be imagined)
+                pos = local[sides[0]] + local[sides[1]] - local[src]
             leg = legs[src]
             new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ pos, leg.rotation,
                          leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})

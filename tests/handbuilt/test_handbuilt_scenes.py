@@ -18,9 +18,7 @@ Per scene three things are checked separately, so one failure does not hide the 
 The truth itself is checked against physics first (``test_truth_*``): its hand-written
 contacts are exactly the touching pairs, and it stands in all three checks.
 
-Failures of the inference are marked ``xfail(strict=True)`` with a one-line diagnosis;
-the full diagnosis (step, function, numbers) is in the report of the commit that added
-them.
+No check is marked as an expected failure: a scene the inference gets wrong fails.
 """
 
 from __future__ import annotations
@@ -44,24 +42,6 @@ ENGINES = ("mujoco", "pybullet")
 MIN_IOU = 0.1
 #: The plank's long axis must come out within this many degrees of the truth.
 SLANT_TOL_DEG = 5.0
-
-TABLE_GREEDY = ("search._Group.greedy: legs' feet cut 3.5-4 cm by the 3 cm ground band; with "
-                "leg3 hidden+hallucinated the group has 11 edges (>10: no exhaustive dive); "
-                "pass 2 drops the back legs' unloaded floor extensions, then box-grown-to-top "
-                "(+0.061 m3) can't be swapped for legs-to-floor (0.005 m3)")
-TABLE_HALLUCINATED = ("prior copies (pipeline.priors.copies) turns leg0 half a turn about "
-                      "the top's centre, but the top (deepened, prior deepen) spans y "
-                      "-0.389..0.287 "
-                      "(true -0.35..0.35): the imagined leg3 spans y 0.166..0.209, the true "
-                      "0.26..0.31, IoU 0")
-
-GRAPH_XFAIL = {"table_leg_hidden": TABLE_GREEDY}
-GEOMETRY_XFAIL = {"table_leg_hidden": TABLE_HALLUCINATED}
-
-
-def _params(xfails: dict) -> list:
-    return [pytest.param(n, marks=pytest.mark.xfail(strict=True, reason=xfails[n]))
-            if n in xfails else n for n in SCENES]
 
 
 @pytest.fixture(scope="module")
@@ -168,14 +148,14 @@ def test_wall_shelf_floor_is_out_of_the_picture(runs):
 
 
 # ------------------------------------------------------------------------- the results
-@pytest.mark.parametrize("name", _params(GRAPH_XFAIL))
+@pytest.mark.parametrize("name", list(SCENES))
 def test_contact_graph(name, runs):
     scene, _, code, pred = runs(name)
     assert code in (0, 1) and pred is not None
     assert mapped_graph(pred, scene.truth) == true_graph(scene.truth)
 
 
-@pytest.mark.parametrize("name", _params(GEOMETRY_XFAIL))
+@pytest.mark.parametrize("name", list(SCENES))
 def test_boxes_overlap_their_parts(name, runs):
     scene, _, _, pred = runs(name)
     truth = scene.truth
