@@ -214,14 +214,15 @@ def apply(arr, evidence, p: Params, ctx):
                 flips = (flip,)
             if src is None:
                 continue
-            pos = local[src].copy()
-            pos[list(flips)] = -pos[list(flips)]
-            sides = [next((n for n, q in enumerate(quads) if q == want), None)
-                     for want in ((missing[0], -missing[1]), (-missing[0], missing[1]))]
-            if flips == (0, 1) and None not in sides:
-                # three legs seen: the fourth completes their parallelogram (the seen
-                # legs place it, not the top's centre, whose far edge may be imagined)
-                pos = local[sides[0]] + local[sides[1]] - local[src]
+            if len(legs) == 3:
+                # the fourth completes the parallelogram of the three seen (src is the
+                # diagonal one): the seen legs place it, not the top's centre, whose far
+                # edge may be imagined
+                pos = (local[quads.index((missing[0], -missing[1]))]
+                       + local[quads.index((-missing[0], missing[1]))] - local[src])
+            else:
+                pos = local[src].copy()
+                pos[list(flips)] = -pos[list(flips)]
             leg = legs[src]
             new = Cuboid(f"h{len(added)}_{obj}", top.center + top.rotation @ pos, leg.rotation,
                          leg.size, leg.density, obj, None, {"hallucinated": True, "points": 0})

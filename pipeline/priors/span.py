@@ -96,7 +96,7 @@ def apply(arr, evidence, p: Params, ctx):
             if evidence.views and evidence.free_fraction(
                     slab_samples(arr, x)) > FREE_FRACTION_MAX:
                 continue  # a view saw the part's end: the space beyond it is empty
-            c = arr.cuboids[k]
+            c = arr.cuboids[k]  # as the accepted growths left it: both ends' growths add up
             v = yield Edit((pushed(c, ax, side, length),),
                            f"{c.id}, a board or panel of {c.object}, runs "
                            f"{1000 * length:.0f} mm further to where its object reaches, "
