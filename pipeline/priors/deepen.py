@@ -62,6 +62,7 @@ from ..boxops import (
     is_upright,
     object_depth,
     object_reach,
+    overlap_along,
     overlap_face,
     push_face,
     resting_cut,
@@ -204,9 +205,7 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
             if (abs(lc - lq) > p.twin_size_rel * max(lc, lq)
                     or abs(float(c.rotation[:, long] @ q.rotation[:, qlong])) < p.twin_cos):
                 continue
-            a0, a1 = extent_along(c, c.rotation[:, long])
-            b0, b1 = extent_along(q, c.rotation[:, long])
-            if min(a1, b1) - max(a0, b0) < 0.5 * min(lc, lq):
+            if overlap_along(c, q, c.rotation[:, long]) < 0.5 * min(lc, lq):
                 continue  # not above one another
             u = away_from(c, depth, eye)
             length = reach_past(c, q, u, p)
