@@ -134,6 +134,8 @@ def full_report(final, report0: dict, rep: dict, engines: dict | None, command: 
               f"| candidate options (before pruning) | {rep.candidate_options} |",
               f"| rejected: seen as empty | {rep.rejected_by_visibility} |",
               f"| visibility check | {rep.visibility} |",
+              "| held once judged by the whole added volume seen through, not the share "
+              f"of its samples | {', '.join(rep.judged_whole) or 'none'} |",
               f"| parts the priors added | {', '.join(rep.hallucinated) or 'none'} |",
               f"| fixed contacts chosen (beyond same-object fusions) | {rep.fixed_chosen} |",
               f"| added volume (m^3) | {rep.added_volume_m3:.4g} |",

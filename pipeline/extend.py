@@ -486,23 +486,34 @@ def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], 
 
 
 def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],
-                        margin: float) -> tuple[list[Edge], int]:
-    """Drop options whose added volume the sensor saw through; returns (edges, n rejected)."""
+                        margin: float, whole_only: frozenset[int] = frozenset()
+                        ) -> tuple[list[Edge], int]:
+    """Drop options whose added volume the sensor saw through; returns (edges, n rejected).
+
+    An added volume is seen through when more than :data:`FREE_FRACTION_MAX` of its
+    samples were (:func:`visible_free_fraction`) or when the median of them was
+    (:func:`seen_in_front`).  On the edges of the boxes in ``whole_only`` (indices) only
+    the median test counts: the per-sample fraction also counts the mixed depths at a
+    silhouette, which a slab a few centimetres thick under a box's bottom edge is mostly
+    made of.
+    """
     if not views:
         return edges, 0
-    cache: dict[Extension, bool] = {}
+    cache: dict[tuple[Extension, bool], bool] = {}
     rejected = 0
     out = []
     for e in edges:
+        whole = e.a in whole_only or e.b in whole_only
         keep = []
         for o in e.options:
             ok = True
             for x in o.extensions:
-                if x not in cache:
+                if (x, whole) not in cache:
                     pts = slab_samples(arr, x)
-                    frac = visible_free_fraction(pts, views, margin)
-                    cache[x] = frac <= FREE_FRACTION_MAX and not seen_in_front(pts, views)
-                ok &= cache[x]
+                    cache[x, whole] = ((whole or visible_free_fraction(pts, views, margin)
+                                        <= FREE_FRACTION_MAX)
+                                       and not seen_in_front(pts, views))
+                ok &= cache[x, whole]
             if ok:
                 keep.append(o)
             else:

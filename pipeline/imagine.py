@@ -7,8 +7,13 @@
 2. the paper's *candidates* (:mod:`pipeline.extend`), pruned by interpenetration and by
    what the views saw empty, and its *branch and bound* (:mod:`pipeline.search`): fewest
    fixed contacts, then least added volume, standing with gravity tilted by 2 degrees.
-   Boxes nothing can hold up (their support was never seen) are set aside and the rest
-   searched again (:data:`ISOLATE_ROUNDS`);
+   Boxes nothing can hold up get a second search in which their candidates are judged
+   by whether the view saw through the added volume as a whole (the median of its
+   samples), not by the share of samples seen through: that share also counts the
+   mixed depths along a silhouette, and the slab between a box's bottom and the floor
+   a few centimetres below is mostly silhouette.  Gravity is certain; a support the
+   view cannot rule out beats a box left hanging.  Boxes still not held (their support
+   was never seen) are set aside and the rest searched again (:data:`ISOLATE_ROUNDS`);
 3. the set-aside boxes come back, then the ``settle`` priors (glue relaxed, parts
    anchored to walls, gaps closed) on an arrangement with a
    contact graph and a verdict;
@@ -58,6 +63,7 @@ class ImagineReport(EditLog):
     fixed_chosen: int = 0
     added_volume_m3: float = 0.0
     set_aside: list[str] = field(default_factory=list)
+    judged_whole: list[str] = field(default_factory=list)
     gap_closed_m: float = 0.0
     refine: dict | None = None
     cuboids: int = 0
@@ -73,7 +79,8 @@ class ImagineReport(EditLog):
                 "rejected_by_visibility": self.rejected_by_visibility,
                 "visibility": self.visibility, "search": self.search,
                 "fixed_chosen": self.fixed_chosen, "added_volume_m3": self.added_volume_m3,
-                "set_aside": self.set_aside, "gap_closed_m": self.gap_closed_m,
+                "set_aside": self.set_aside, "judged_whole": self.judged_whole,
+                "gap_closed_m": self.gap_closed_m,
                 "refine": self.refine, "cuboids": self.cuboids, "stable": self.stable,
                 "energy": self.energy, "unstable": self.unstable, "added": self.added,
                 "timings": self.timings}
@@ -115,14 +122,27 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
 
     t = time.perf_counter()
     eyes = [v.eye for v in evidence.views]
-    edges = candidate_edges(arr, eyes=eyes)
-    report.candidate_options = sum(len(e.options) for e in edges)
+    unpruned = candidate_edges(arr, eyes=eyes)
+    report.candidate_options = sum(len(e.options) for e in unpruned)
     edges, report.rejected_by_visibility = prune_by_visibility(
-        arr, edges, list(evidence.views), evidence.margin)
+        arr, unpruned, list(evidence.views), evidence.margin)
     timings["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
     result = search(arr, edges, budget=budget, mu=mu, threshold=threshold, progress=progress)
+    if not result.stable and result.unstable_ids and evidence.views:
+        # boxes nothing can hold: their candidates judged by the whole-slab test alone
+        ids = [c.id for c in arr.cuboids]
+        held = frozenset(ids.index(b) for b in result.unstable_ids if b in ids)
+        wider, _ = prune_by_visibility(arr, unpruned, list(evidence.views),
+                                       evidence.margin, whole_only=held)
+        left = budget - (time.perf_counter() - t0)
+        if (sum(len(e.options) for e in wider) > sum(len(e.options) for e in edges)
+                and left >= 0.1 * budget):
+            second = search(arr, wider, budget=left, mu=mu, threshold=threshold)
+            if second.stable:
+                report.judged_whole = sorted(result.unstable_ids)
+                edges, result = wider, second
     # boxes nothing can hold up (their support was never seen) are set aside and the rest
     # searched again: glue cannot save them, and gluing their whole group would only hide
     # the contacts the rest of the scene does have

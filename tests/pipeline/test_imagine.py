@@ -1520,3 +1520,48 @@ def test_a_top_whose_far_end_nobody_saw_past_keeps_its_fitted_size():
     out, ids = hallucinate(arr, blind)
     new = _new(ids, arr)
     assert len(new) == 2 and ids == new and out.cuboid("top") is arr.cuboid("top")
+
+
+@pytest.mark.parametrize("lift", [0.0, 0.15])
+def test_a_box_nothing_else_holds_is_held_unless_the_view_saw_through_its_support(lift):
+    """A crate fitted 15 cm too wide on one side and 4 cm short at its bottom: a sixth
+    of the samples in the slab between it and the floor lie past its true side, where
+    the view saw the floor behind them, so the share test alone rejects the only
+    support it has.  The orchestrator judges that box's candidates again by the whole
+    slab (the median of its samples' gaps): resting on the floor (``lift`` 0) the slab
+    was not seen through as a whole and the crate stands on the floor; hanging 15 cm
+    up, the view saw the floor under it, and nothing holds it."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import (
+        FREE_FRACTION_MAX,
+        DepthView,
+        Evidence,
+        seen_in_front,
+        slab_samples,
+        visible_free_fraction,
+    )
+    from pipeline.extend import prune_by_visibility, support_edges
+    from pipeline.imagine import imagine
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 0.7), (0.0, 0.0, 0.2))
+    truth = box("crate", (0.0, 0.0, lift + 0.2), (0.4, 0.3, 0.4))
+    view = DepthView(_depth_of_boxes([truth], T, intr), intr, T)
+    fit = box("crate", (0.075, 0.0, lift + 0.22), (0.55, 0.3, 0.36))
+    arr = Arrangement((fit,), (ground(),))
+    edges = support_edges(arr, 5.0)
+    slab = slab_samples(arr, edges[0].options[1].extensions[0])
+    assert visible_free_fraction(slab, [view]) > FREE_FRACTION_MAX
+    assert seen_in_front(slab, [view]) == (lift > 0)
+    assert prune_by_visibility(arr, edges, [view], 0.0)[0] == []
+
+    res = imagine(arr, Evidence((view,)))
+    crate = res.arrangement.cuboid("crate")
+    if lift == 0:
+        assert res.report.judged_whole == ["crate"] and res.report.stable
+        assert crate.center[2] - crate.size[2] / 2 == pytest.approx(0.0, abs=1e-6)
+        assert [(c.a, c.b) for c in res.arrangement.contacts] == [("crate", "ground")]
+        assert check_stability(res.arrangement).stable
+    else:
+        assert res.report.judged_whole == [] and not res.report.stable
+        assert res.arrangement.contacts == ()
