@@ -154,7 +154,7 @@ def _lift_leaning(arr: Arrangement, centers: np.ndarray, sizes: np.ndarray,
     return out
 
 
-def apart(arr: Arrangement, geom: Arrangement) -> Arrangement:
+def apart(arr: Arrangement, geom: Arrangement, falls=None) -> Arrangement:
     """``geom`` (``arr`` extended group by group) with no box entering another that did
     not enter it in ``arr``.
 
@@ -162,7 +162,10 @@ def apart(arr: Arrangement, geom: Arrangement) -> Arrangement:
     of one group may grow into a box, or an extension, of another.  For each such pair
     the box whose overlapping face can move back without cutting into its fitted box
     (``arr``'s) is trimmed clear of the other (:func:`pipeline.boxops.trimmed`); when
-    neither can, both go back to their fitted boxes."""
+    both can, and ``falls`` (a callable: cuboids -> how many boxes fall) is given, the
+    one whose trimming leaves fewer boxes falling (a desk grown down onto its pedestal
+    keeps that reach; the shelf that grew up into it gives way); when neither can, both
+    go back to their fitted boxes."""
     from .boxops import trimmed
     from .contacts import find_contacts
 
@@ -179,15 +182,26 @@ def apart(arr: Arrangement, geom: Arrangement) -> Arrangement:
             break
         a, b = new[0]
         i, j = cur.index[a], cur.index[b]
-        done = False
+        ways = []
         for k, other in ((i, j), (j, i)):
             c = trimmed(cubs[k], cubs[other])
             fit = arr.cuboids[k]
             local = (fit.corners() - c.center) @ c.rotation
             if c is not cubs[k] and np.all(np.abs(local) <= c.size / 2 + 1e-6):
-                cubs[k], done = c, True
-                break
-        if not done:
+                ways.append((k, c))
+                if falls is None:
+                    break
+        if len(ways) == 2:
+            n = []
+            for k, c in ways:
+                trial = list(cubs)
+                trial[k] = c
+                n.append(falls(tuple(trial)))
+            ways = [ways[int(np.argmin(n))]]
+        if ways:
+            k, c = ways[0]
+            cubs[k] = c
+        else:
             cubs[i], cubs[j] = arr.cuboids[i], arr.cuboids[j]
     return geom.with_(cuboids=tuple(cubs))
 

@@ -823,7 +823,18 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
                 n_fixed += int(not e.same_object)
         if progress is not None:
             progress(gi + 1, len(groups))
-    geom = apart(arr, apply_offsets(arr, offsets_of(all_exts, K)))
+    grown = apply_offsets(arr, offsets_of(all_exts, K))
+
+    def falls(cubs) -> int:
+        try:
+            res = finalize(grown.with_(cuboids=cubs), contacts, mu=mu, threshold=threshold)
+        except InputError:  # a chosen fixed pair no longer touches
+            return K
+        if res.stability is None or res.stability.stable:
+            return 0
+        return len(check_stability(res, mu=mu, threshold=threshold).unstable_ids) or K
+
+    geom = apart(arr, grown, falls)
     added = float(np.sum(np.prod(geom.sizes, axis=1) - np.prod(arr.sizes, axis=1)))
     final = finalize(geom, contacts, mu=mu, threshold=threshold)
     stats.seconds = time.perf_counter() - t0
