@@ -12,8 +12,10 @@
    samples), not by the share of samples seen through: that share also counts the
    mixed depths along a silhouette, and the slab between a box's bottom and the floor
    a few centimetres below is mostly silhouette.  Gravity is certain; a support the
-   view cannot rule out beats a box left hanging.  Boxes still not held (their support
-   was never seen) are set aside and the rest searched again (:data:`ISOLATE_ROUNDS`);
+   view cannot rule out beats a box left hanging.  Boxes still not held get a post each
+   where the view allows one (the ``posts`` prior) and a third search.  Each search
+   again is kept only when fewer boxes fall.  Boxes still not held (their support was
+   never seen) are set aside and the rest searched again (:data:`ISOLATE_ROUNDS`);
 3. the set-aside boxes come back, then the ``settle`` priors (glue relaxed, parts
    anchored to walls, gaps closed) on an arrangement with a
    contact graph and a verdict;
@@ -97,6 +99,31 @@ def _stable(arr: Arrangement) -> bool:
     return arr.stability is not None and arr.stability.stable
 
 
+def _falling(result, mu: float, threshold: float | None) -> tuple[str, ...]:
+    """The boxes of a search result that fall (the analytic check); all of them when
+    the check names none."""
+    if result.stable:
+        return ()
+    from .stability import check_stability
+
+    res = check_stability(result.arrangement, mu=mu, threshold=threshold)
+    return tuple(res.unstable_ids) or result.arrangement.ids
+
+
+def _search_again(arr: Arrangement, edges, result, t0: float, config: ImagineConfig):
+    """A search of ``arr`` with wider candidates ``edges``, returned when fewer of its
+    boxes fall than of ``result``'s (None otherwise, or when less than a tenth of the
+    budget is left)."""
+    left = config.budget - (time.perf_counter() - t0)
+    if left < 0.1 * config.budget:
+        return None
+    again = search(arr, edges, budget=left, mu=config.mu, threshold=config.threshold)
+    if len(_falling(again, config.mu, config.threshold)) < len(
+            _falling(result, config.mu, config.threshold)):
+        return again
+    return None
+
+
 def imagine(arr: Arrangement, evidence: Evidence | None = None,
             config: ImagineConfig | None = None, *, progress=None) -> ImagineResult:
     """Extend the initial cuboids of ``arr`` into a stable arrangement (module docstring)."""
@@ -130,19 +157,36 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
 
     t = time.perf_counter()
     result = search(arr, edges, budget=budget, mu=mu, threshold=threshold, progress=progress)
-    if not result.stable and result.unstable_ids and evidence.views:
+    unheld = tuple(result.unstable_ids) or _falling(result, mu, threshold)
+    if unheld and evidence.views:
         # boxes nothing can hold: their candidates judged by the whole-slab test alone
-        ids = [c.id for c in arr.cuboids]
-        held = frozenset(ids.index(b) for b in result.unstable_ids if b in ids)
+        held = frozenset(arr.index[b] for b in unheld if b in arr.index)
         wider, _ = prune_by_visibility(arr, unpruned, list(evidence.views),
                                        evidence.margin, whole_only=held)
-        left = budget - (time.perf_counter() - t0)
-        if (sum(len(e.options) for e in wider) > sum(len(e.options) for e in edges)
-                and left >= 0.1 * budget):
-            second = search(arr, wider, budget=left, mu=mu, threshold=threshold)
-            if second.stable:
-                report.judged_whole = sorted(result.unstable_ids)
+        if sum(len(e.options) for e in wider) > sum(len(e.options) for e in edges):
+            second = _search_again(arr, wider, result, t0, config)
+            if second is not None:
                 edges, result = wider, second
+                after = tuple(result.unstable_ids) or _falling(result, mu, threshold)
+                report.judged_whole = sorted(set(unheld) - set(after))
+                unheld = after
+    if unheld and config.enabled("posts"):
+        # ... and those still not held get a post each where the view allows one
+        n_edits, n_added = len(report.edits), len(report.added)
+        posted = run_stage("complete", arr, evidence,
+                           Context(mu=mu, threshold=threshold, deadline=t0 + budget,
+                                   unheld=unheld), config, report, only="posts")
+        if len(posted.cuboids) > len(arr.cuboids):
+            held = frozenset(posted.index[b] for b in report.added[n_added:] + list(unheld)
+                             if b in posted.index)
+            wider, _ = prune_by_visibility(posted, candidate_edges(posted, eyes=eyes),
+                                           list(evidence.views), evidence.margin,
+                                           whole_only=held)
+            third = _search_again(posted, wider, result, t0, config)
+            if third is not None:
+                arr, edges, result = posted, wider, third
+            else:  # the posts hold nothing: the result does not carry them
+                del report.edits[n_edits:], report.added[n_added:]
     # boxes nothing can hold up (their support was never seen) are set aside and the rest
     # searched again: glue cannot save them, and gluing their whole group would only hide
     # the contacts the rest of the scene does have

@@ -85,6 +85,8 @@ class Context:
     mu: float = 0.7
     threshold: float | None = None
     deadline: float = float("inf")
+    #: boxes the search could not hold with every candidate fixed (for ``posts``)
+    unheld: tuple[str, ...] = ()
     memo: dict = field(default_factory=dict, repr=False, compare=False)  #: the gate's
 
 

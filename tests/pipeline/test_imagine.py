@@ -1565,3 +1565,48 @@ def test_a_box_nothing_else_holds_is_held_unless_the_view_saw_through_its_suppor
     else:
         assert res.report.judged_whole == [] and not res.report.stable
         assert res.arrangement.contacts == ()
+
+
+def _table_view(eye, truth):
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView, Evidence
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at(eye, (0.0, 0.0, 0.5))
+    backdrop = box("backdrop", (0.0, 1.2, 1.0), (4.0, 0.1, 2.0))
+    return Evidence((DepthView(_depth_of_boxes([*truth, backdrop], T, intr), intr, T),))
+
+
+@pytest.mark.parametrize("case", ["pedestal hidden", "seen from below", "seen empty"])
+def test_a_top_nothing_seen_holds_gets_a_post_where_the_view_allows_one(case):
+    """A table top 0.73 m up, fitted alone: its pedestal lost (or there is none).  Seen
+    from above, the space under the top's centre is in its shadow and the ``posts``
+    prior gives it a post there, as wide as the view allows (40 and 24 cm were seen
+    empty around the 10 cm pedestal, 16 cm was not): the top, fixed to its post, stands
+    on the floor.  Seen from 25 cm above the floor, or from above with nothing under the
+    top, the view saw the floor through that space, no post is placed and the top is
+    left unheld."""
+    from pipeline.imagine import imagine
+
+    top = box("top", (0.0, 0.0, 0.75), (1.0, 0.8, 0.04), object="table")
+    pedestal = box("pedestal", (0.0, 0.0, 0.365), (0.1, 0.1, 0.73), object="table")
+    eye, truth = {"pedestal hidden": ((0.0, -2.0, 1.6), [top, pedestal]),
+                  "seen from below": ((0.0, -2.5, 0.25), [top]),
+                  "seen empty": ((0.0, -2.0, 1.6), [top])}[case]
+    res = imagine(Arrangement((top,), (ground(),)), _table_view(eye, truth))
+    tried = [e for e in res.report.edits if e.prior == "posts"]
+    assert tried, "the posts prior was not asked"
+    if case == "pedestal hidden":
+        assert res.report.stable and res.report.added == ["top_post"]
+        post = res.arrangement.cuboid("top_post")
+        assert post.object == "table" and post.extra["hallucinated"]
+        np.testing.assert_allclose(post.center, [0.0, 0.0, 0.365], atol=1e-9)
+        np.testing.assert_allclose(post.size, [0.16, 0.16, 0.73], atol=1e-9)
+        assert [e.accepted for e in tried] == [False, False, True]
+        assert sorted((c.a, c.b, c.type) for c in res.arrangement.contacts) == [
+            ("top", "top_post", "fixed"), ("top_post", "ground", "touch")]
+        assert check_stability(res.arrangement, tilt_deg=2.0).stable
+    else:
+        assert not any(e.accepted for e in tried) and res.report.added == []
+        assert not res.report.stable and res.arrangement.contacts == ()
+        assert res.arrangement.cuboid("top").size[2] == pytest.approx(0.04)

@@ -892,3 +892,39 @@ def test_a_plank_reaches_the_far_pier_whose_top_the_noise_cut_and_both_close_the
     # with the noise of 2 m no option closes the gap: the plank never reaches the far pier
     blind = search(arr, candidate_edges(arr), budget=5)
     assert ("far", "plank") not in _types(blind.arrangement)
+
+
+def test_when_either_box_can_give_way_the_one_whose_trim_keeps_more_standing_does():
+    """A desk top grown 10 cm down onto its pedestal (its one support) and, from
+    another search group, a crate grown 25 cm up, 5 cm into the top's grown slab.  Either can
+    be trimmed back without cutting its fitted box; trimming the top would leave it
+    hanging above its pedestal, so the crate gives way (without ``falls``, the first of
+    the pair does, as before)."""
+    from pipeline.contacts import find_contacts
+    from pipeline.extend import apart
+    from pipeline.stability import check_stability
+
+    pedestal = box("pedestal", (0.0, 0.0, 0.3), (0.1, 0.1, 0.6))
+    top = box("a_top", (0.0, 0.0, 0.75), (1.0, 0.6, 0.1))
+    crate = box("crate", (0.35, 0.0, 0.2), (0.2, 0.2, 0.4))
+    fitted = Arrangement((top, pedestal, crate), (ground(),))
+    grown = fitted.with_(cuboids=(box("a_top", (0.0, 0.0, 0.7), (1.0, 0.6, 0.2)), pedestal,
+                                  box("crate", (0.35, 0.0, 0.325), (0.2, 0.2, 0.65))))
+    assert find_contacts(grown).penetrations
+
+    def falls(cubs):
+        arr = grown.with_(cuboids=cubs)
+        res = check_stability(arr)
+        return len(res.unstable_ids)
+
+    out = apart(fitted, grown, falls)
+    assert not find_contacts(out).penetrations
+    got_top, got_crate = out.cuboid("a_top"), out.cuboid("crate")
+    assert got_top.center[2] - got_top.size[2] / 2 == pytest.approx(0.6)  # on its pedestal
+    assert got_crate.center[2] + got_crate.size[2] / 2 == pytest.approx(0.6, abs=2e-3)
+    assert falls(out.cuboids) == 0
+    # without a judge the first box of the pair gives way and is left hanging
+    blind = apart(fitted, grown)
+    assert blind.cuboid("a_top").center[2] - blind.cuboid("a_top").size[2] / 2 == pytest.approx(
+        0.65, abs=2e-3)  # on the crate, off its pedestal
+    assert falls(blind.cuboids) > 0
