@@ -5,12 +5,13 @@ Evidence: the boxes the search could not hold even with every candidate contact 
 gravity is certain, so a body seen above the floor with no support among the boxes,
 the floor and the walls rests on something hidden under it (a table's pedestal behind
 what stands on it, a chair's legs lost in the depth noise, a stand cut off by the
-picture's edge).  Each such upright box gets one post of its own object: under its
-centre, square, from its bottom down to the highest top of a box below that centre or
-to the floor, as wide as the gate lets it be (:data:`WIDTHS` of the box's narrower
-side, widest first): it may enter no box and fill no space a view saw empty.  The
-search then decides whether the post holds the box; a post that does not is a part
-the result does not need and is never proposed again.
+picture's edge).  Each object with such boxes gets one post: under the centre of its
+lowest upright unheld box, square, from that box's bottom down to the floor, as wide as
+the gate lets it be (:data:`WIDTHS` of the box's narrower side, widest first): it may
+enter no box and fill no space a view saw empty.  A box above another box's top rests
+on that box, which is the one to hold: it gets no post.  The search then decides
+whether the posts hold; when fewer boxes fall with them, the result carries them, and
+otherwise none of them.
 """
 
 from __future__ import annotations
@@ -35,40 +36,39 @@ class Params:
     min_width: float = 0.01
 
 
-def _below(arr, c: Cuboid, xy: np.ndarray, bottom: float) -> float:
-    """Height of the highest top under point ``xy`` below ``bottom``: another upright
-    box's top (its footprint holding ``xy``), else the ground's."""
-    best = next((float(s.point[2]) for s in arr.supports if s.id == "ground"), 0.0)
+def _over_a_box(arr, c: Cuboid, bottom: float) -> bool:
+    """Whether another upright box's top lies under ``c``'s centre below ``bottom``
+    (then ``c`` rests on that box, and it is that box that needs holding)."""
     for o in arr.cuboids:
-        if o.id == c.id:
-            continue
         ax = vertical_axis(o)
-        if ax is None:
+        if o.id == c.id or ax is None or o.center[2] + o.size[ax] / 2 > bottom + 1e-9:
             continue
-        top = float(o.center[2] + o.size[ax] / 2)
-        if top > bottom + 1e-9 or top <= best:
-            continue
-        local = (np.array([xy[0], xy[1], o.center[2]]) - o.center) @ o.rotation
-        horiz = [k for k in range(3) if k != ax]
-        if all(abs(local[k]) <= o.size[k] / 2 for k in horiz):
-            best = top
-    return best
+        local = (np.array([c.center[0], c.center[1], o.center[2]]) - o.center) @ o.rotation
+        if all(abs(local[k]) <= o.size[k] / 2 for k in range(3) if k != ax):
+            return True
+    return False
 
 
 def apply(arr, evidence, p: Params, ctx):
     unheld = set(ctx.unheld)
     if not unheld:
         return
-    for c in list(arr.cuboids):
-        if c.id not in unheld:
-            continue
+    ground = next((float(s.point[2]) for s in arr.supports if s.id == "ground"), None)
+    if ground is None:
+        return
+    # one post per object, under its lowest part with nothing but the floor below it
+    lowest: dict[str, tuple[float, Cuboid, int]] = {}
+    for c in arr.cuboids:
         ax = vertical_axis(c)
-        if ax is None:
+        if c.id not in unheld or ax is None:
             continue
         bottom = float(c.center[2] - c.size[ax] / 2)
-        floor = _below(arr, c, c.center[:2], bottom)
-        height = bottom - floor
-        if height < p.min_height:
+        key = c.object or c.id
+        if key not in lowest or bottom < lowest[key][0]:
+            lowest[key] = (bottom, c, ax)
+    for bottom, c, ax in sorted(lowest.values(), key=lambda t: (t[0], t[1].id)):
+        height = bottom - ground
+        if height < p.min_height or _over_a_box(arr, c, bottom):
             continue
         narrow = float(min(c.size[k] for k in range(3) if k != ax))
         for share in WIDTHS:
@@ -77,10 +77,10 @@ def apply(arr, evidence, p: Params, ctx):
                 break
             size = np.full(3, width)
             size[ax] = height
-            centre = np.array([c.center[0], c.center[1], floor + height / 2])
+            centre = np.array([c.center[0], c.center[1], ground + height / 2])
             post = Cuboid(f"{c.id}_post", centre, c.rotation, size, c.density, c.object,
                           None, {"hallucinated": True, "points": 0})
-            v = yield Edit((post,), f"{c.id}: nothing seen holds it {bottom:.2f} m up; a "
+            v = yield Edit((post,), f"{c.id}: nothing seen holds it {height:.2f} m up; a "
                                     f"post {100 * width:.0f} cm wide under its centre")
             if v.ok:
                 arr = v.arrangement
