@@ -246,7 +246,7 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         labels, names = split_clusters(labels, names, world, frame.T_world_input[:3, 3],
                                        scan.pixels, scan.depth.shape,
                                        max(30, int(MIN_OBJECT_FRACTION * len(world))),
-                                       frame.threshold)
+                                       frame.threshold, image=scan.image)
     if (labels >= 0).sum() >= 100:  # the cell from what was segmented (stray points gone)
         cell = max(cell_rel * scene_scale(world[labels >= 0]), min_cell)
     part_of = [int(nm[4:]) if parts and nm.startswith("inst") else None for nm in names]

@@ -253,6 +253,11 @@ PATCH_NEAR_PX = 7
 SPLIT_CREASE_DEG = 25.0
 SPLIT_STEP_REL = 0.03
 SPLIT_STEP_MIN = 0.04
+#: Neighbouring patches whose planes are within 45 degrees of parallel (not two faces of
+#: one box, which meet square) and whose median colours differ by more than
+#: :data:`SPLIT_COLOUR_DE` (CIE Lab: L 0-100) are two objects.
+COLOUR_COS = float(np.cos(np.radians(45.0)))
+SPLIT_COLOUR_DE = 30.0
 #: A piece must hold this share of its cluster (and ``min_points``) to become an object.
 SPLIT_MIN_SHARE = 0.01
 
@@ -370,26 +375,31 @@ def _adopt(piece: np.ndarray, pts: np.ndarray, pix: np.ndarray, shape: tuple[int
 
 def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
                    eye: np.ndarray, pixels: np.ndarray, shape: tuple[int, int],
-                   min_points: int, plane_threshold: float) -> tuple[np.ndarray, list[str]]:
+                   min_points: int, plane_threshold: float, image: np.ndarray | None = None
+                   ) -> tuple[np.ndarray, list[str]]:
     """Split proximity clusters of a depth image into the objects they hold.
 
-    Evidence: the depth image's face planes.  Principle: touching objects part where one
-    stands on or against another, so that their faces meet in a concave crease, or
-    where one stands in front of another (a depth step); the faces of one convex box
-    meet only in convex creases, so a box is never cut into its faces.  Each cluster's
-    points are cut into planar patches (Open3D RANSAC planes, each split into its pieces
-    connected in the image, at least :data:`PATCH_MIN_SHARE` of the cluster).  Patches
-    whose pixels come within :data:`PATCH_NEAR_PX` are neighbours; neighbours are one
-    object unless their normals ``n`` (turned to the camera) and centroids ``x`` meet
-    concavely, ``(n1 - n2) . (x1 - x2) < 0`` at more than :data:`SPLIT_CREASE_DEG` (the
-    convexity test of Stein et al. 2014, LCCP), or where they meet in the picture each
-    side's points lie off the other's plane by a depth step (median, :data:`SPLIT_STEP_REL`
-    of the depth, at least :data:`SPLIT_STEP_MIN`).  Colour does not split: cutting at
-    colour edges (Canny) and between patches of different chromaticity found more
-    objects on the real scans but lowered their support-graph F1 by 3.4 (boxes) and 4.6
-    (rooms): print on a box made pieces of it.  The connected groups of patches holding at least :data:`SPLIT_MIN_SHARE` of the
-    cluster become objects; every other point of the cluster joins the nearest.  A
-    cluster with fewer than two such groups is kept whole (nothing separates it).
+    Evidence: the depth image's face planes and the colour image.  Principle: touching
+    objects part where one stands on or against another, so that their faces meet in a
+    concave crease, or where one stands in front of another (a depth step); the faces of
+    one convex box meet only in convex creases, so a box is never cut into its faces.
+    Each cluster's points are cut into planar patches (Open3D RANSAC planes, each split
+    into its pieces connected in the image, at least :data:`PATCH_MIN_SHARE` of the
+    cluster). Patches whose pixels come within :data:`PATCH_NEAR_PX` are neighbours;
+    neighbours are one object unless their normals ``n`` (turned to the camera) and
+    centroids ``x`` meet concavely, ``(n1 - n2) . (x1 - x2) < 0`` at more than
+    :data:`SPLIT_CREASE_DEG` (the convexity test of Stein et al.  2014, LCCP), or where
+    they meet in the picture each side's points lie off the other's plane by a depth
+    step (median, :data:`SPLIT_STEP_REL` of the depth, at least :data:`SPLIT_STEP_MIN`),
+    or where, with a colour image, their planes are less than 45 degrees apart (not two
+    sides of one box, which meet square and differ in shading) and their median colours
+    differ by more than :data:`SPLIT_COLOUR_DE` in CIE Lab: a white box leaning on a
+    brown one.  Print on a box lies in the plane of its face, inside one patch, and
+    never splits it (cutting at every colour edge did, and lowered the real scans'
+    support-graph F1). The connected groups of patches holding at least
+    :data:`SPLIT_MIN_SHARE` of the cluster become objects; every other point of the
+    cluster joins the nearest.  A cluster with fewer than two such groups is kept whole
+    (nothing separates it).
     Instance and scribble labels are never split.
 
     ``labels`` (n,), ``names`` as :func:`segment_objects` returns them; ``world`` (n, 3);
@@ -402,6 +412,11 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
     out = np.full_like(labels, -1)
     new_names: list[str] = []
     cos_crease = np.cos(np.radians(SPLIT_CREASE_DEG))
+    lab = None
+    if image is not None and image.shape[:2] == tuple(shape):
+        import cv2
+
+        lab = cv2.cvtColor(image.astype(np.float32) / 255.0, cv2.COLOR_RGB2Lab)
     for k, name in enumerate(names):
         sel = np.flatnonzero(labels == k)
         least = max(min_points, int(SPLIT_MIN_SHARE * len(sel)))
@@ -417,10 +432,13 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
             out[sel] = len(new_names)
             new_names.append(name)
             continue
-        cen, nrm = np.zeros((P, 3)), np.zeros((P, 3))
-        for p in range(P):  # centroid and plane normal (turned to the camera) per patch
+        cen, nrm, tone = np.zeros((P, 3)), np.zeros((P, 3)), np.zeros((P, 3))
+        for p in range(P):  # centroid, plane normal (turned to the camera), colour
             q = pts[patch == p]
             cen[p] = q.mean(0)
+            if lab is not None:
+                qp = pix[patch == p]
+                tone[p] = np.median(lab[qp[:, 0], qp[:, 1]], axis=0)
             n = np.linalg.svd(q - cen[p], full_matrices=False)[2][2]
             nrm[p] = n if n @ (eye - cen[p]) >= 0 else -n
         rows, cols = [], []
@@ -434,7 +452,12 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
                        and nrm[a] @ nrm[b] < cos_crease)
             depth = float(min(np.linalg.norm(cen[a] - eye), np.linalg.norm(cen[b] - eye)))
             step = gap > max(SPLIT_STEP_MIN, SPLIT_STEP_REL * depth)
-            if not (concave or step):
+            # two faces that are not square to each other (not two sides of one box)
+            # and differ in colour are two objects' faces (a white box on a brown one)
+            colour = (lab is not None and not (concave or step)
+                      and float(nrm[a] @ nrm[b]) > COLOUR_COS
+                      and float(np.linalg.norm(tone[a] - tone[b])) > SPLIT_COLOUR_DE)
+            if not (concave or step or colour):
                 rows.append(a)
                 cols.append(b)
         g = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(P, P))

@@ -22,14 +22,12 @@ def _initial(name: str):
     return ann, res
 
 
-@pytest.mark.xfail(strict=True, reason="the brown box's front is flush with the carton's: "
-                   "whether a crease separates them depends on the RANSAC draw (Open3D's "
-                   "multi-threaded segment_plane gave 2 or 3 objects from run to run; the "
-                   "seeded RANSAC that replaced it gives 2)")
 def test_three_touching_boxes_without_labels_come_apart():
     # Shao's 3-box Kinect frame: an A4 carton with a small brown box on it and a black
     # box leaning on it; no instance mask, one proximity cluster for the carton and the
-    # brown box.  Each labelled box must be the main box of an object of its own.
+    # brown box, whose front is flush with the carton's.  The brown and the carton's
+    # white faces part by colour.  Each labelled box must be the main box of an object of
+    # its own.
     ann, res = _initial("shao_kinect_boxes__3boxes_depth16bits_dat")
     s = score(res.arrangement, res.scan.points, ann)
     assert sorted(set(s.match.values())) == ["a4", "black", "brown"], s.match
@@ -51,3 +49,15 @@ def test_a_floor_seen_whole_is_kept():
     # must not act: SUN RGB-D 000003 shows its floor; no plane moves under it
     _, res = _initial("sunrgbd_mmdet3d__000003_lidar_npz")
     assert not any("table top" in n for n in res.initial_report["notes"])
+
+
+def test_five_boxes_on_a_table_come_apart_by_colour():
+    # Shao's 5-box frame: a white box leaning on two brown ones, a box with a white label
+    # standing on a black one, all on a white table; their fronts meet at shallow angles
+    # with no crease or step.  The table, the black, the white, the label and the left
+    # brown box are each the main box of an object of their own (the right brown box
+    # shows 578 points beside the white one's corner, under 1 % of its cluster: too few
+    # to be an object, they join their nearest)
+    ann, res = _initial("shao_kinect_boxes__5boxes_depth16bits_dat")
+    s = score(res.arrangement, res.scan.points, ann)
+    assert sorted(s.match.values()) == ["black", "brown_left", "label", "table", "white"]

@@ -90,3 +90,43 @@ def test_a_shaded_box_seen_on_three_faces_stays_one_object(tmp_path, yaw):
     _, rep = initial(scan, RunConfig(seed=0))
     assert len(rep["objects"]) == 1, rep["objects"]
 
+
+
+def _ridge(deg: float):
+    """Two boxes side by side on the floor, each turned ``deg`` degrees, their fronts
+    meeting in a ridge towards the camera (a convex edge, as a box's own edges are)."""
+    size = np.array([0.4, 0.3, 0.5])
+    ridge = np.array([0.0, -0.05, 0.25])
+    out = []
+    for sign in (-1.0, 1.0):
+        R = rotation_about_z(np.radians(sign * deg))
+        corner = np.array([-sign * size[0] / 2, -size[1] / 2, 0.0])  # front corner at the ridge
+        out.append((ridge - R @ corner, R, size))
+    return out
+
+
+@pytest.mark.parametrize("painted", [True, False])
+def test_two_boxes_whose_fronts_meet_in_a_ridge_are_two_objects_when_painted_apart(
+        tmp_path, painted):
+    """Two boxes side by side, turned 15 degrees each way, their fronts meeting in a
+    convex ridge towards the camera, as two faces of one box would (at 30 degrees, not
+    square): no concave crease, no depth step.  Painted differently (the ray-caster's
+    colour per box) they are two objects; painted one colour nothing separates them and
+    the cluster stays whole.  The strip of each front within the plane tolerance of the
+    other (a few cm along the ridge) goes with the other, so each object holds about
+    three quarters of its box."""
+    boxes = _ridge(15.0)
+    frame = raycast(boxes, (0.1, -1.6, 0.4), (0.0, 0.1, 0.3))
+    if not painted:
+        frame.color[:] = 150
+    scan = load(write_frame(frame, tmp_path / "frame"))
+    _, rep = initial(scan, RunConfig(seed=0))
+    labels = rep["labels"]
+    truth = frame.instance[scan.pixels[:, 0], scan.pixels[:, 1]]
+    (a, share_a), (b, share_b) = _main_objects(labels, truth)
+    if painted:
+        assert len(rep["objects"]) == 2, rep["objects"]
+        assert a != b and share_a > 0.65 and share_b > 0.65
+        assert min(_purity(labels, truth)) > 0.75
+    else:
+        assert len(rep["objects"]) == 1, rep["objects"]
