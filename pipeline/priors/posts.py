@@ -8,7 +8,9 @@ what stands on it, a chair's legs lost in the depth noise, a stand cut off by th
 picture's edge).  Each object with such boxes gets one post: under the centre of its
 lowest upright unheld box, square, from that box's bottom down to the floor, as wide as
 the gate lets it be (:data:`WIDTHS` of the box's narrower side, widest first): it may
-enter no box and fill no space a view saw empty.  A box above another box's top rests
+enter no box and fill no space a view saw empty, and it is no narrower than what stands
+with the box on it under gravity tilted by :data:`pipeline.priors.gate.TILT_DEG` (a
+narrower one would stand only glued to the floor).  A box above another box's top rests
 on that box, which is the one to hold: it gets no post.  The search then decides
 whether the posts hold; when fewer boxes fall with them, the result carries them, and
 otherwise none of them.
@@ -23,6 +25,7 @@ import numpy as np
 from ..boxops import vertical_axis
 from ..model import Cuboid
 from .base import Edit, Prior, principle_of
+from .gate import TILT_DEG
 
 #: Widths of a post tried, as shares of the narrower horizontal side of the box it holds.
 WIDTHS = (0.5, 0.3, 0.2, 0.1)
@@ -71,9 +74,12 @@ def apply(arr, evidence, p: Params, ctx):
         if height < p.min_height or _over_a_box(arr, c, bottom):
             continue
         narrow = float(min(c.size[k] for k in range(3) if k != ax))
+        # a post narrower than this tips under the search's tilted gravity with the box
+        # on it (its centre of mass no higher than the box's): it would stand only glued
+        least = max(p.min_width, 2.0 * np.tan(np.radians(TILT_DEG)) * (c.center[2] - ground))
         for share in WIDTHS:
             width = share * narrow
-            if width < p.min_width:
+            if width < least:
                 break
             size = np.full(3, width)
             size[ax] = height
