@@ -500,8 +500,8 @@ def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], 
 
 
 def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],
-                        margin: float, whole_only: frozenset[int] = frozenset()
-                        ) -> tuple[list[Edge], int]:
+                        margin: float, whole_only: frozenset[int] = frozenset(),
+                        cache: dict | None = None) -> tuple[list[Edge], int]:
     """Drop options whose added volume the sensor saw through; returns (edges, n rejected).
 
     An added volume is seen through when more than :data:`FREE_FRACTION_MAX` of its
@@ -509,11 +509,12 @@ def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthVi
     (:func:`seen_in_front`).  On the edges of the boxes in ``whole_only`` (indices) only
     the median test counts: the per-sample fraction also counts the mixed depths at a
     silhouette, which a slab a few centimetres thick under a box's bottom edge is mostly
-    made of.
+    made of.  ``cache`` (extension, whole) -> verdict may be shared by calls on the same
+    ``arr`` and views.
     """
     if not views:
         return edges, 0
-    cache: dict[tuple[Extension, bool], bool] = {}
+    cache = {} if cache is None else cache
     rejected = 0
     out = []
     for e in edges:

@@ -44,7 +44,7 @@ from .model import Arrangement, Cuboid, ObservedBox
 from .priors import Context, Edit, ImagineConfig
 from .priors.runner import EditLog, EditRecord, run_stage
 from .refine import refine
-from .search import finalize, search
+from .search import falling, finalize, search
 from .snap import close_gaps
 
 #: Rounds of setting aside boxes that nothing can hold up and searching the rest again.
@@ -99,29 +99,17 @@ def _stable(arr: Arrangement) -> bool:
     return arr.stability is not None and arr.stability.stable
 
 
-def _falling(result, mu: float, threshold: float | None) -> tuple[str, ...]:
-    """The boxes of a search result that fall (the analytic check); all of them when
-    the check names none."""
-    if result.stable:
-        return ()
-    from .stability import check_stability
-
-    res = check_stability(result.arrangement, mu=mu, threshold=threshold)
-    return tuple(res.unstable_ids) or result.arrangement.ids
-
-
-def _search_again(arr: Arrangement, edges, result, t0: float, config: ImagineConfig):
-    """A search of ``arr`` with wider candidates ``edges``, returned when fewer of its
-    boxes fall than of ``result``'s (None otherwise, or when less than a tenth of the
-    budget is left)."""
+def _search_again(arr: Arrangement, edges, n_falling: int, t0: float,
+                  config: ImagineConfig):
+    """A search of ``arr`` with wider candidates ``edges`` and the boxes that fall in its
+    result, when fewer than ``n_falling`` do (None otherwise, or when less than a tenth
+    of the budget is left)."""
     left = config.budget - (time.perf_counter() - t0)
     if left < 0.1 * config.budget:
         return None
     again = search(arr, edges, budget=left, mu=config.mu, threshold=config.threshold)
-    if len(_falling(again, config.mu, config.threshold)) < len(
-            _falling(result, config.mu, config.threshold)):
-        return again
-    return None
+    fall = falling(again.arrangement, config.mu, config.threshold)
+    return (again, fall) if len(fall) < n_falling else None
 
 
 def imagine(arr: Arrangement, evidence: Evidence | None = None,
@@ -151,23 +139,25 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     eyes = [v.eye for v in evidence.views]
     unpruned = candidate_edges(arr, eyes=eyes)
     report.candidate_options = sum(len(e.options) for e in unpruned)
+    seen: dict = {}  # visibility verdicts of the extensions, shared with the second search
     edges, report.rejected_by_visibility = prune_by_visibility(
-        arr, unpruned, list(evidence.views), evidence.margin)
+        arr, unpruned, list(evidence.views), evidence.margin, cache=seen)
     timings["candidates"] = time.perf_counter() - t
 
     t = time.perf_counter()
     result = search(arr, edges, budget=budget, mu=mu, threshold=threshold, progress=progress)
-    unheld = tuple(result.unstable_ids) or _falling(result, mu, threshold)
+    fall = falling(result.arrangement, mu, threshold)
+    unheld = tuple(result.unstable_ids) or fall
     if unheld and evidence.views:
         # boxes nothing can hold: their candidates judged by the whole-slab test alone
         held = frozenset(arr.index[b] for b in unheld if b in arr.index)
         wider, _ = prune_by_visibility(arr, unpruned, list(evidence.views),
-                                       evidence.margin, whole_only=held)
+                                       evidence.margin, whole_only=held, cache=seen)
         if sum(len(e.options) for e in wider) > sum(len(e.options) for e in edges):
-            second = _search_again(arr, wider, result, t0, config)
-            if second is not None:
-                edges, result = wider, second
-                after = tuple(result.unstable_ids) or _falling(result, mu, threshold)
+            again = _search_again(arr, wider, len(fall), t0, config)
+            if again is not None:
+                (result, fall), edges = again, wider
+                after = tuple(result.unstable_ids) or fall
                 report.judged_whole = sorted(set(unheld) - set(after))
                 unheld = after
     if unheld and config.enabled("posts"):
@@ -182,9 +172,9 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
             wider, _ = prune_by_visibility(posted, candidate_edges(posted, eyes=eyes),
                                            list(evidence.views), evidence.margin,
                                            whole_only=held)
-            third = _search_again(posted, wider, result, t0, config)
-            if third is not None:
-                arr, edges, result = posted, wider, third
+            again = _search_again(posted, wider, len(fall), t0, config)
+            if again is not None:
+                arr, edges, result = posted, wider, again[0]
             else:  # the posts hold nothing: the result does not carry them
                 del report.edits[n_edits:], report.added[n_added:]
     # boxes nothing can hold up (their support was never seen) are set aside and the rest

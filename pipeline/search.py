@@ -830,9 +830,7 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
             res = finalize(grown.with_(cuboids=cubs), contacts, mu=mu, threshold=threshold)
         except InputError:  # a chosen fixed pair no longer touches
             return K
-        if res.stability is None or res.stability.stable:
-            return 0
-        return len(check_stability(res, mu=mu, threshold=threshold).unstable_ids) or K
+        return len(falling(res, mu=mu, threshold=threshold))
 
     geom = apart(arr, grown, falls)
     added = float(np.sum(np.prod(geom.sizes, axis=1) - np.prod(arr.sizes, axis=1)))
@@ -868,6 +866,19 @@ def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
     return arr.with_(stability=StabilitySummary(res.energy, res.stable, res.threshold))
 
 
+def falling(arr: Arrangement, mu: float = 0.7, threshold: float | None = None
+            ) -> tuple[str, ...]:
+    """The boxes of ``arr`` (as :func:`finalize` returned it) that fall in the analytic
+    check: none when its verdict says it stands, all of them when the check names none.
+    The equilibria :func:`finalize` solved are reused (its memo is exact)."""
+    if arr.stability is not None and arr.stability.stable:
+        return ()
+    if len(_FINALIZE_SOLVES) > FINALIZE_CACHE_MAX:
+        _FINALIZE_SOLVES.clear()
+    res = check_stability(arr, mu=mu, threshold=threshold, solve_cache=_FINALIZE_SOLVES)
+    return tuple(res.unstable_ids) or arr.ids
+
+
 #: bounded memo of :func:`finalize` (exact: digests of sub-problems, same-cuboid bases)
 FINALIZE_CACHE_MAX = 512
 _FINALIZE_SOLVES: dict[bytes, tuple] = {}
@@ -888,4 +899,4 @@ def _finalize_contacts(geom: Arrangement) -> ContactSet:
     return cs
 
 
-__all__ = ["search", "SearchResult", "SearchStats", "finalize"]
+__all__ = ["search", "SearchResult", "SearchStats", "finalize", "falling"]

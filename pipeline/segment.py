@@ -385,10 +385,10 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
     one convex box meet only in convex creases, so a box is never cut into its faces.
     Each cluster's points are cut into planar patches (Open3D RANSAC planes, each split
     into its pieces connected in the image, at least :data:`PATCH_MIN_SHARE` of the
-    cluster). Patches whose pixels come within :data:`PATCH_NEAR_PX` are neighbours;
+    cluster).  Patches whose pixels come within :data:`PATCH_NEAR_PX` are neighbours;
     neighbours are one object unless their normals ``n`` (turned to the camera) and
     centroids ``x`` meet concavely, ``(n1 - n2) . (x1 - x2) < 0`` at more than
-    :data:`SPLIT_CREASE_DEG` (the convexity test of Stein et al.  2014, LCCP), or where
+    :data:`SPLIT_CREASE_DEG` (the convexity test of Stein et al. 2014, LCCP), or where
     they meet in the picture each side's points lie off the other's plane by a depth
     step (median, :data:`SPLIT_STEP_REL` of the depth, at least :data:`SPLIT_STEP_MIN`),
     or where, with a colour image, their planes are less than 45 degrees apart (not two
@@ -396,7 +396,7 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
     differ by more than :data:`SPLIT_COLOUR_DE` in CIE Lab: a white box leaning on a
     brown one.  Print on a box lies in the plane of its face, inside one patch, and
     never splits it (cutting at every colour edge did, and lowered the real scans'
-    support-graph F1). The connected groups of patches holding at least
+    support-graph F1).  The connected groups of patches holding at least
     :data:`SPLIT_MIN_SHARE` of the cluster become objects; every other point of the
     cluster joins the nearest.  A cluster with fewer than two such groups is kept whole
     (nothing separates it).
@@ -434,11 +434,11 @@ def split_clusters(labels: np.ndarray, names: list[str], world: np.ndarray,
             continue
         cen, nrm, tone = np.zeros((P, 3)), np.zeros((P, 3)), np.zeros((P, 3))
         for p in range(P):  # centroid, plane normal (turned to the camera), colour
-            q = pts[patch == p]
+            mine = patch == p
+            q = pts[mine]
             cen[p] = q.mean(0)
             if lab is not None:
-                qp = pix[patch == p]
-                tone[p] = np.median(lab[qp[:, 0], qp[:, 1]], axis=0)
+                tone[p] = np.median(lab[pix[mine, 0], pix[mine, 1]], axis=0)
             n = np.linalg.svd(q - cen[p], full_matrices=False)[2][2]
             nrm[p] = n if n @ (eye - cen[p]) >= 0 else -n
         rows, cols = [], []

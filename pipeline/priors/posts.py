@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import vertical_axis
+from ..boxops import floor_height, vertical_axis, z_range
 from ..model import Cuboid
 from .base import Edit, Prior, principle_of
 from .gate import TILT_DEG
@@ -44,7 +44,7 @@ def _over_a_box(arr, c: Cuboid, bottom: float) -> bool:
     (then ``c`` rests on that box, and it is that box that needs holding)."""
     for o in arr.cuboids:
         ax = vertical_axis(o)
-        if o.id == c.id or ax is None or o.center[2] + o.size[ax] / 2 > bottom + 1e-9:
+        if o.id == c.id or ax is None or z_range(o)[1] > bottom + 1e-9:
             continue
         local = (np.array([c.center[0], c.center[1], o.center[2]]) - o.center) @ o.rotation
         if all(abs(local[k]) <= o.size[k] / 2 for k in range(3) if k != ax):
@@ -56,7 +56,7 @@ def apply(arr, evidence, p: Params, ctx):
     unheld = set(ctx.unheld)
     if not unheld:
         return
-    ground = next((float(s.point[2]) for s in arr.supports if s.id == "ground"), None)
+    ground = floor_height(arr)
     if ground is None:
         return
     # one post per object, under its lowest part with nothing but the floor below it
@@ -65,7 +65,7 @@ def apply(arr, evidence, p: Params, ctx):
         ax = vertical_axis(c)
         if c.id not in unheld or ax is None:
             continue
-        bottom = float(c.center[2] - c.size[ax] / 2)
+        bottom = z_range(c)[0]
         key = c.object or c.id
         if key not in lowest or bottom < lowest[key][0]:
             lowest[key] = (bottom, c, ax)
