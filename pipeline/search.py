@@ -866,11 +866,9 @@ def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
     return arr.with_(stability=StabilitySummary(res.energy, res.stable, res.threshold))
 
 
-def falling(arr: Arrangement, mu: float = 0.7, threshold: float | None = None
-            ) -> tuple[str, ...]:
-    """The boxes of ``arr`` (as :func:`finalize` returned it) that fall in the analytic
-    check: none when its verdict says it stands, all of them when the check names none.
-    The equilibria :func:`finalize` solved are reused (its memo is exact)."""
+def falling(arr: Arrangement, mu: float = 0.7, threshold: float | None = None) -> tuple:
+    """The boxes of ``arr`` (from :func:`finalize`, whose exact memo it reuses) that fall
+    in the analytic check: none when it stands, all when the check names none."""
     if arr.stability is not None and arr.stability.stable:
         return ()
     if len(_FINALIZE_SOLVES) > FINALIZE_CACHE_MAX:
