@@ -32,8 +32,11 @@ two upright parts of one object meet side by side (vertical ranges sharing at le
 ``joined_share`` of the lower one, their faces within ``joined_gap``), the one whose
 extent across the joint stops short of the other's on the side away from the camera by
 more than ``joined_min`` is pushed back to the other's far face there, as far as no view
-saw the added space empty.  A leg under a top or a box on a board is not joined side by
-side; a rail between two legs is no wider across the joint than they are.
+saw the added space empty, when the two start together (within ``joined_min``) on the
+side the camera sees: then the view ended it, while a part behind the other's middle (a
+monitor's neck behind its screen) was ended by its own width.  A leg under a top or a
+box on a board is not joined side by side; a rail between two legs is no wider across
+the joint than they are.
 
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
 their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
@@ -167,8 +170,12 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 q0, q1 = extent_along(q, c.rotation[:, n])
                 if max(q0 - c1, c0 - q1) > p.joined_gap or min(c1, q1) - max(c0, q0) > p.joined_gap:
                     continue
-                # ... and q reaches further across it, away from the eye
+                # ... and q reaches further across it, away from the eye, while the two
+                # start together on the side the camera sees (a part behind the other's
+                # middle, as a monitor's neck behind its screen, is not cut short by the view)
                 u = away_from(c, a, eye)
+                if extent_along(q, u)[0] < extent_along(c, u)[0] - p.joined_min:
+                    continue
                 length = reach_past(c, q, u, p)
                 if length is not None:
                     out.append((k, a, u, length))

@@ -296,6 +296,26 @@ def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
     assert "leg" not in ids
 
 
+def test_only_a_part_flush_with_its_neighbour_on_the_seen_side_is_pushed_along_it():
+    """Joined side by side, two parts start together on the side the camera sees and one
+    stops short on the side it cannot: the view ended it.  A part behind the middle of
+    the other (a monitor's neck behind its screen) starts well inside it: what ends it
+    is its own width, and it is not pushed along the screen."""
+    eye = np.array([0.9, -2.0, 1.1])
+    p = deepen.Params()
+    screen = box("screen", (0.0, 0.0, 1.0), (0.5, 0.03, 0.3), object="monitor")
+    neck = box("neck", (0.0, 0.03, 0.95), (0.05, 0.03, 0.3), object="monitor")
+    assert deepen.joined_pushes(Arrangement((neck, screen), (ground(),)), eye, p) == []
+    # an arm fitted as the 5 cm of its front, flush with the seat's front beside it,
+    # reaches back to the seat's back face (0.55 m further)
+    seat = box("seat", (0.0, 0.0, 0.2), (0.8, 0.6, 0.4), object="sofa")
+    arm = box("arm", (0.47, -0.275, 0.3), (0.14, 0.05, 0.6), object="sofa")
+    pushes = deepen.joined_pushes(Arrangement((arm, seat), (ground(),)), eye, p)
+    assert [(k, axis) for k, axis, _u, _l in pushes] == [(0, 1)]
+    np.testing.assert_allclose(pushes[0][2], [0.0, 1.0, 0.0], atol=1e-12)
+    assert pushes[0][3] == pytest.approx(0.55)
+
+
 def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     """Two boards of one object, the same length and parallel, one above the other: the
     lower one, fitted as its front strip and seen obliquely (so no face-on rule applies),
