@@ -32,9 +32,10 @@ two upright parts of one object meet side by side (vertical ranges sharing at le
 ``joined_share`` of the lower one, their faces within ``joined_gap``), the one whose
 extent across the joint stops short of the other's on the side away from the camera by
 more than ``joined_min`` is pushed back to the other's far face there, as far as no view
-saw the added space empty, when the two start together (within ``joined_min``) on the
-side the camera sees: then the view ended it, while a part behind the other's middle (a
-monitor's neck behind its screen) was ended by its own width.  A leg under a top or a
+saw the added space empty, when the other reaches past it on the side the camera sees
+by no more than ``joined_min`` or half as far as on the side away from it: then the
+view ended it, while a part behind the other's middle (a monitor's neck behind its
+screen) was ended by its own width.  A leg under a top or a
 box on a board is not joined side by side; a rail between two legs is no wider across
 the joint than they are.
 
@@ -170,14 +171,13 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 q0, q1 = extent_along(q, c.rotation[:, n])
                 if max(q0 - c1, c0 - q1) > p.joined_gap or min(c1, q1) - max(c0, q0) > p.joined_gap:
                     continue
-                # ... and q reaches further across it, away from the eye, while the two
-                # start together on the side the camera sees (a part behind the other's
-                # middle, as a monitor's neck behind its screen, is not cut short by the view)
+                # ... and q reaches further across it, away from the eye, much further
+                # than on the side the camera sees (a part behind the other's middle, as
+                # a monitor's neck behind its screen, is not cut short by the view)
                 u = away_from(c, a, eye)
-                if extent_along(q, u)[0] < extent_along(c, u)[0] - p.joined_min:
-                    continue
                 length = reach_past(c, q, u, p)
-                if length is not None:
+                if length is not None and (extent_along(c, u)[0] - extent_along(q, u)[0]
+                                           <= max(p.joined_min, 0.5 * length)):
                     out.append((k, a, u, length))
     return sorted(out, key=lambda t: -t[3])
 

@@ -296,11 +296,12 @@ def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
     assert "leg" not in ids
 
 
-def test_only_a_part_flush_with_its_neighbour_on_the_seen_side_is_pushed_along_it():
-    """Joined side by side, two parts start together on the side the camera sees and one
-    stops short on the side it cannot: the view ended it.  A part behind the middle of
-    the other (a monitor's neck behind its screen) starts well inside it: what ends it
-    is its own width, and it is not pushed along the screen."""
+def test_a_part_is_pushed_along_its_neighbour_only_where_the_view_cut_it_short():
+    """Joined side by side, one part stops short of the other on the side the camera
+    cannot see, where the other reaches little past it on the side it sees: the view
+    ended it.  A part behind the middle of the other (a monitor's neck behind its
+    screen) has the other reach as far past it on both sides: what ends it is its own
+    width, and it is not pushed along the screen."""
     eye = np.array([0.9, -2.0, 1.1])
     p = deepen.Params()
     screen = box("screen", (0.0, 0.0, 1.0), (0.5, 0.03, 0.3), object="monitor")
@@ -314,6 +315,11 @@ def test_only_a_part_flush_with_its_neighbour_on_the_seen_side_is_pushed_along_i
     assert [(k, axis) for k, axis, _u, _l in pushes] == [(0, 1)]
     np.testing.assert_allclose(pushes[0][2], [0.0, 1.0, 0.0], atol=1e-12)
     assert pushes[0][3] == pytest.approx(0.55)
+    # set 5 cm back from the seat's front (more than joined_min, less than half of the
+    # 0.5 m the seat reaches past it behind): still cut short by the view
+    arm = box("arm", (0.47, -0.225, 0.3), (0.14, 0.05, 0.6), object="sofa")
+    pushes = deepen.joined_pushes(Arrangement((arm, seat), (ground(),)), eye, p)
+    assert len(pushes) == 1 and pushes[0][3] == pytest.approx(0.5)
 
 
 def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
