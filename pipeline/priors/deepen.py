@@ -11,7 +11,8 @@ slab standing on its edge that is a box of its own or shows a face of
 pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
 entered.  A panel of an object of several parts (its seen sides within ``thin_fraction``
-of each other: a desk's or a chair's side, a sofa's arm, a chair's back) is pushed only
+of each other, or its seen face at least ``big_face`` wide, which no leg or post is: a
+desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only
 where its object ends within ``thin_fraction`` of its width behind it (a chair's back
 seen from the front goes back to the seat's rear edge): furniture is built of thin
 panels, so what shows a panel's depth is the parts it is joined to (below), not a square
@@ -311,7 +312,8 @@ def _face_on(arr, evidence, p: Params):
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
             reach = object_reach(arr, c, u) + float(c.size[axis]) / 2
-            if (not single_part(arr, c) and width >= p.thin_fraction * height
+            if (not single_part(arr, c)
+                    and (width >= p.thin_fraction * height or width >= p.big_face)
                     and height >= p.thin_fraction * width and reach > p.thin_fraction * width):
                 break  # a panel of furniture: its depth is what its joints say
             if single_part(arr, c) and c.extra.get("object_parts", 1) > 1:

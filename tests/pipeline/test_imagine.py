@@ -1028,6 +1028,33 @@ def test_fit_yaws_turns_a_board_back_onto_what_the_camera_saw():
     assert np.degrees(abs(np.arctan2(R[1, 0], R[0, 0]) - yaw)) <= 1.0 + 1e-6
 
 
+def test_a_tall_side_panel_seen_face_on_stays_a_panel_while_a_post_gets_a_square():
+    """A shelf's side, 1.2 m tall and 0.3 m deep, seen face-on from beside the shelf and
+    fitted as the 7 mm slab of its outer face: a face at least ``big_face`` wide is a
+    panel of furniture, not a post, so it is not pushed into a 0.3 m square column
+    filling the hidden inside of the shelf.  A 5 cm post of the same object, seen the
+    same way, is deepened to its width."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((-2.0, 0.0, 1.0), (0.0, 0.0, 0.6))
+    left = box("left", (-0.29, 0.0, 0.6), (0.02, 0.3, 1.2), object="shelf")
+    right = box("right", (0.29, 0.0, 0.6), (0.02, 0.3, 1.2), object="shelf")
+    top = box("top", (0.0, 0.0, 1.21), (0.6, 0.3, 0.02), object="shelf")
+    views = [DepthView(_depth_of_boxes([left, right, top], T, intr), intr, T)]
+    slab = box("left", (-0.2965, 0.0, 0.6), (0.007, 0.3, 1.2), object="shelf")
+    assert DEEPEN.big_face <= 0.3 < DEEPEN.thin_fraction * 1.2  # taller than twice its width
+    out, ids = deepen_thin_boxes(Arrangement((slab, right, top), (ground(),)), views)
+    assert "left" not in ids and out.cuboid("left") is slab
+    post = box("left", (-0.29, 0.0, 0.6), (0.05, 0.05, 1.2), object="shelf")
+    views = [DepthView(_depth_of_boxes([post, right, top], T, intr), intr, T)]
+    front = box("left", (-0.3115, 0.0, 0.6), (0.007, 0.05, 1.2), object="shelf")
+    out, ids = deepen_thin_boxes(Arrangement((front, right, top), (ground(),)), views)
+    assert "left" in ids
+    assert out.cuboid("left").size[0] == pytest.approx(0.05, abs=1e-9)
+
+
 def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches():
     # the back stands on the rear 3.5 cm of the seat; the camera in front sees only its
     # front face, fitted as a 7 mm slab.  Deepened up to its width (as a leg would be)
