@@ -12,9 +12,9 @@ pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
 entered.  A panel of an object of several parts (its seen sides within ``thin_fraction``
 of each other, or its seen face at least ``big_face`` wide, which no leg or post is: a
-desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only
-where its object ends within ``thin_fraction`` of its width behind it (a chair's back
-seen from the front goes back to the seat's rear edge): furniture is built of thin
+desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where its object
+ends within ``thin_fraction`` of its width behind it (a chair's back seen from the front
+goes back to the seat's rear edge): furniture is built of thin
 panels, so what shows a panel's depth is the parts it is joined to (below), not a square
 footprint (a desk seen from the side became a block filling the hidden space under its
 top).  A part that is the only one seen of an object whose other parts the
@@ -36,9 +36,9 @@ more than ``joined_min`` is pushed back to the other's far face there, as far as
 saw the added space empty, when the other reaches past it on the side the camera sees
 by no more than ``joined_min`` or half as far as on the side away from it: then the
 view ended it, while a part behind the other's middle (a monitor's neck behind its
-screen) was ended by its own width.  A leg under a top or a
-box on a board is not joined side by side; a rail between two legs is no wider across
-the joint than they are.
+screen) was ended by its own width.  A leg under a top or a box on a board is not
+joined side by side; a rail between two legs is no wider across the joint than they
+are.
 
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
 their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
