@@ -191,15 +191,10 @@ def apart(arr: Arrangement, geom: Arrangement, falls=None) -> Arrangement:
                 ways.append((k, c))
                 if falls is None:
                     break
-        if len(ways) == 2:
-            n = []
-            for k, c in ways:
-                trial = list(cubs)
-                trial[k] = c
-                n.append(falls(tuple(trial)))
-            ways = [ways[int(np.argmin(n))]]
-        if ways:
-            k, c = ways[0]
+        if ways:  # two only with ``falls``: the trimming that leaves fewer falling
+            k, c = ways[0] if len(ways) == 1 else min(
+                ways, key=lambda w: falls(tuple(w[1] if n == w[0] else x
+                                                for n, x in enumerate(cubs))))
             cubs[k] = c
         else:
             cubs[i], cubs[j] = arr.cuboids[i], arr.cuboids[j]

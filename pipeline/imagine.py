@@ -150,9 +150,9 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     unheld = tuple(result.unstable_ids) or fall
     if unheld and evidence.views:
         # boxes nothing can hold: their candidates judged by the whole-slab test alone
-        held = frozenset(arr.index[b] for b in unheld if b in arr.index)
+        whole = frozenset(arr.index[b] for b in unheld if b in arr.index)
         wider, _ = prune_by_visibility(arr, unpruned, list(evidence.views),
-                                       evidence.margin, whole_only=held, cache=seen)
+                                       evidence.margin, whole_only=whole, cache=seen)
         if sum(len(e.options) for e in wider) > sum(len(e.options) for e in edges):
             again = _search_again(arr, wider, len(fall), t0, config)
             if again is not None:
@@ -167,11 +167,11 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
                            Context(mu=mu, threshold=threshold, deadline=t0 + budget,
                                    unheld=unheld), config, report, only="posts")
         if len(posted.cuboids) > len(arr.cuboids):
-            held = frozenset(posted.index[b] for b in report.added[n_added:] + list(unheld)
-                             if b in posted.index)
+            whole = frozenset(posted.index[b] for b in report.added[n_added:] + list(unheld)
+                              if b in posted.index)
             wider, _ = prune_by_visibility(posted, candidate_edges(posted, eyes=eyes),
                                            list(evidence.views), evidence.margin,
-                                           whole_only=held)
+                                           whole_only=whole)
             again = _search_again(posted, wider, len(fall), t0, config)
             if again is not None:
                 arr, edges, result = posted, wider, again[0]

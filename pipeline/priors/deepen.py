@@ -177,8 +177,10 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 # a monitor's neck behind its screen, is not cut short by the view)
                 u = away_from(c, a, eye)
                 length = reach_past(c, q, u, p)
-                if length is not None and (extent_along(c, u)[0] - extent_along(q, u)[0]
-                                           <= max(p.joined_min, 0.5 * length)):
+                if length is None:
+                    continue
+                near = extent_along(c, u)[0] - extent_along(q, u)[0]  # q past c, seen side
+                if near <= max(p.joined_min, 0.5 * length):
                     out.append((k, a, u, length))
     return sorted(out, key=lambda t: -t[3])
 
