@@ -13,6 +13,7 @@ from .base import Prior
 from .close_gaps import PRIOR as _close_gaps
 from .copies import PRIOR as _copies
 from .deepen import PRIOR as _deepen
+from .from_below import PRIOR as _from_below
 from .join_parts import PRIOR as _join_parts
 from .mirror import PRIOR as _mirror
 from .object_yaw import PRIOR as _object_yaw
@@ -29,7 +30,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
     _deepen, _join_parts, _span, _rows, _mirror, _copies, _posts,
-    _relax_glue, _anchor_parts, _close_gaps)
+    _from_below, _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.
 GROUPS: dict[str, tuple[str, ...]] = {"symmetry": ("mirror", "copies")}
