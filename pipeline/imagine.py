@@ -16,9 +16,9 @@
    where the view allows one (the ``posts`` prior) and a third search.  Each search
    again is kept only when fewer boxes fall.  Boxes still not held (their support was
    never seen) are set aside and the rest searched again (:data:`ISOLATE_ROUNDS`);
-3. the set-aside boxes come back, then the ``settle`` priors (glue relaxed, parts
-   anchored to walls, gaps closed) on an arrangement with a
-   contact graph and a verdict;
+3. the set-aside boxes come back, then the ``settle`` priors (loads leaning on walls
+   carried from below, glue relaxed, parts anchored to walls, gaps closed) on an
+   arrangement with a contact graph and a verdict;
 4. the paper's *refinement* (:mod:`pipeline.refine`) when the result still carries
    residual energy above a hundredth of the threshold, and the *closing* of contact gaps
    the statics counted as touching (:func:`pipeline.snap.close_gaps`: what the engines
