@@ -85,7 +85,9 @@ def _observed_corners(c) -> np.ndarray:
 
 
 def _push(arr, load_ids, wall, sup, p: Params):
-    """The supporter ``sup`` pushed towards ``wall`` under the load's far side, or None."""
+    """The supporter ``sup`` pushed towards ``wall`` under as much of the load (the boxes
+    ``load_ids``) as the sensor saw, no further than the wall; None when that is less
+    than ``p.min_push`` or ``sup`` has no upright face turned towards the wall."""
     d = -wall.normal.copy()
     d[2] = 0.0
     if np.linalg.norm(d) < 1e-6 or not is_upright(sup):
