@@ -109,6 +109,24 @@ def visible_free_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndar
     return seen
 
 
+def visible_hidden_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
+    """Per point of ``points``: whether every view was kept from seeing it (a reading
+    clearly nearer than it, no reading at its pixel, or outside the picture)."""
+    hidden = np.ones(len(points), bool)
+    for view in views:
+        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
+        H, W = view.depth.shape
+        u = np.round(uv[:, 0])
+        v = np.round(uv[:, 1])
+        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+        iu = np.where(inside, u, 0).astype(int)
+        iv = np.where(inside, v, 0).astype(int)
+        d = view.nearest[iv, iu]
+        tol = 3 * depth_noise(d) + margin
+        hidden &= ~inside | (d <= 0) | (d < z - tol)
+    return hidden
+
+
 #: Added volume lies, taken as a whole, in front of what the sensor saw when the median
 #: of its samples' gaps to the depth (nearest reading around each pixel) exceeds this many
 #: noise standard deviations and :data:`SEEN_IN_FRONT_MIN_GAP` metres (at close range
@@ -217,6 +235,13 @@ class Evidence:
         """Whether a volume sampled by ``points`` was seen empty: more than
         ``max_fraction`` of the samples."""
         return bool(self.views) and self.free_fraction(points) > max_fraction
+
+    def hidden_fraction(self, points: np.ndarray) -> float:
+        """Share of ``points`` no view could see (:func:`visible_hidden_mask`); 1 without
+        views."""
+        if not len(points) or not self.views:
+            return 1.0
+        return float(visible_hidden_mask(points, self.views, self.margin).mean())
 
     def in_front(self, points: np.ndarray) -> bool:
         """Whether some view saw past the samples ``points`` taken as a whole."""

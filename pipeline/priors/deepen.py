@@ -12,9 +12,11 @@ pushed away from the camera towards that other extent (a square footprint), in
 ``steps`` increments, as far as no view saw the added space empty and nothing is
 entered.  A panel of an object of several parts (its seen sides within ``thin_fraction``
 of each other, or its seen face at least ``big_face`` wide, which no leg or post is: a
-desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where its object
-ends within ``thin_fraction`` of its width behind it (a chair's back seen from the front
-goes back to the seat's rear edge): furniture is built of thin
+desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where the parts
+joined to it (within ``joined_gap``; not one fixed to its back face) end within
+``thin_fraction`` of its width behind it (a chair's back seen from the front goes back to
+the seat's rear edge; a monitor's screen not to the foot under its neck): furniture is
+built of thin
 panels, so what shows a panel's depth is the parts it is joined to (below), not a square
 footprint (a desk seen from the side became a block filling the hidden space under its
 top).  A part that is the only one seen of an object whose other parts the
@@ -63,6 +65,7 @@ from ..boxops import (
     broad_face,
     changed_boxes,
     extent_along,
+    gap,
     horizontal_axes,
     is_upright,
     object_depth,
@@ -293,6 +296,25 @@ def _pushed_to(arr, evidence, p: Params, pushes, why: str):
     return arr
 
 
+def joined_reach(arr: Arrangement, c, u: np.ndarray, gap_max: float) -> float:
+    """How far the other parts of ``c``'s object that are joined to it (within ``gap_max``)
+    reach beyond ``c``'s centre along ``u`` (-inf when none does); a part fixed to ``c``'s
+    face towards ``u`` (behind it, overlapping it across that face, as a monitor's neck
+    behind its screen) does not count: it shows what is behind the panel, not its depth."""
+    back = float(c.center @ u + 0.5 * np.abs(c.rotation.T @ u) @ c.size)
+    across = [c.rotation[:, a] for a in range(3) if abs(float(c.rotation[:, a] @ u)) < 0.5]
+    proj = []
+    for o in arr.cuboids:
+        if o.object != c.object or o.id == c.id or gap(c, o) > gap_max:
+            continue
+        corners = o.corners() @ u
+        if float(corners.min()) >= back - gap_max and all(
+                overlap_along(c, o, w) > gap_max for w in across):
+            continue  # on the panel's back face
+        proj.append(corners)
+    return float(np.concatenate(proj).max() - c.center @ u) if proj else -np.inf
+
+
 def _face_on(arr, evidence, p: Params):
     from ..extend import Extension
 
@@ -313,10 +335,14 @@ def _face_on(arr, evidence, p: Params):
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            reach = object_reach(arr, c, u) + float(c.size[axis]) / 2
-            if (not single_part(arr, c)
-                    and (width >= p.thin_fraction * height or width >= p.big_face)
-                    and height >= p.thin_fraction * width and reach > p.thin_fraction * width):
+            panel = (not single_part(arr, c)
+                     and (width >= p.thin_fraction * height or width >= p.big_face)
+                     and height >= p.thin_fraction * width)
+            # a panel's depth is what the parts joined to it say (a chair's back goes back
+            # to the seat it stands on; a monitor's screen not to the foot under its neck)
+            reach = ((joined_reach(arr, c, u, p.joined_gap) if panel else object_reach(arr, c, u))
+                     + float(c.size[axis]) / 2)
+            if panel and reach > p.thin_fraction * width:
                 break  # a panel of furniture: its depth is what its joints say
             if single_part(arr, c) and c.extra.get("object_parts", 1) > 1:
                 break  # the one seen panel of furniture whose other parts no view shows

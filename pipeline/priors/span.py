@@ -12,8 +12,11 @@ up to the near face of one of those parts on the way (it meets that part: a boar
 at its side panel), whichever is furthest without entering a part of its object or
 sliding in under one it was not under (a side panel stands on the floor, not on the
 bottom board), through space no view saw empty
-(:data:`pipeline.evidence.FREE_FRACTION_MAX`).  A part whose end a view saw (the space
-beyond it seen empty) keeps it.  The gate rejects a growth into another object.  It
+(:data:`pipeline.evidence.FREE_FRACTION_MAX`) and at least ``hidden_min`` of it hidden
+from every view (something nearer in front of it, or no reading there).  A part whose
+end a view saw keeps it: the space beyond it seen empty, or seen at all (a monitor's
+foot lying on a desk, the desk top in plain view beside it: a slab two centimetres above
+a seen surface is never "seen empty", the depth noise is wider).  The gate rejects a growth into another object.  It
 runs after ``join_parts``: a leg seen only at its foot is a flat stub, and no board,
 until it is reached up to its seat.
 """
@@ -42,6 +45,9 @@ from .base import Edit, Prior, principle_of
 class Params:
     panel_ratio: float = 3.0  #: a board's thickness is at most its next extent over this
     min_reach: float = 0.03  #: metres the object must reach past the part's end
+    #: least share of the growth's samples that no view could see (something nearer in
+    #: front of them, or no reading)
+    hidden_min: float = 0.5
 
 
 def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
@@ -93,9 +99,11 @@ def apply(arr, evidence, p: Params, ctx):
     for _obj, k in order:
         for ax, side, length in reaches(arr, k, p):
             x = Extension(k, ax, side, length)
-            if evidence.views and evidence.free_fraction(
-                    slab_samples(arr, x)) > FREE_FRACTION_MAX:
+            samples = slab_samples(arr, x)
+            if evidence.views and evidence.free_fraction(samples) > FREE_FRACTION_MAX:
                 continue  # a view saw the part's end: the space beyond it is empty
+            if evidence.hidden_fraction(samples) < p.hidden_min:
+                continue  # nothing hid the space beyond its end: the view saw it end
             c = arr.cuboids[k]  # as the accepted growths left it: both ends' growths add up
             v = yield Edit((pushed(c, ax, side, length),),
                            f"{c.id}, a board or panel of {c.object}, runs "

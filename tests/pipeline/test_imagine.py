@@ -446,17 +446,22 @@ def test_a_box_in_a_row_seen_obliquely_by_its_front_is_deepened(angle):
     assert DEEPEN.big_face > 0.15
     out, ids = deepen_thin_boxes(Arrangement((part, other, *row), (ground(),)), views)
     assert "mid" not in ids
-    # ... nor a square panel of one (a desk's side) while its object goes on behind it
-    # (the board, 30 cm deep): furniture is built of thin panels ...
+    # ... nor a square panel of one (a desk's side) while the part joined to it goes on
+    # behind it (the board on it, 30 cm deep): furniture is built of thin panels ...
     panel = seen.with_(object="shelf")
-    out, ids = deepen_thin_boxes(Arrangement((panel, other, *row), (ground(),)), views)
+    on_top = other.with_(center=np.array([0.0, 0.15, 0.31]))
+    out, ids = deepen_thin_boxes(Arrangement((panel, on_top, *row), (ground(),)), views)
     assert "mid" not in ids
-    # ... but one at its object's far end goes back to it (a board 10 cm deep)
-    shallow = other.with_(center=np.array([0.0, 0.05, 0.5]), size=np.array([0.6, 0.1, 0.02]))
+    # ... but one at the far end of the part joined to it goes back to it (a board on it
+    # 10 cm deep); the same board 20 cm above it, not joined to it, says nothing
+    shallow = other.with_(center=np.array([0.0, 0.05, 0.31]), size=np.array([0.6, 0.1, 0.02]))
     out, ids = deepen_thin_boxes(Arrangement((panel, shallow, *row), (ground(),)), views)
     assert ids == ["mid"]
     assert out.cuboid("mid").center[1] + out.cuboid("mid").size[1] / 2 == \
         pytest.approx(0.1, abs=1e-9)
+    apart = shallow.with_(center=np.array([0.0, 0.05, 0.5]))
+    out, ids = deepen_thin_boxes(Arrangement((panel, apart, *row), (ground(),)), views)
+    assert "mid" not in ids
     # a low box seen from above-ish (thin against its width but not its height) is not
     flat = box("mid", (0, 0.004, 0.01), (0.3, 0.008, 0.012))
     out, ids = deepen_thin_boxes(Arrangement((flat, *row), (ground(),)), views)
@@ -1074,6 +1079,36 @@ def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches(
     b = out.cuboid("back")
     assert b.size[1] == pytest.approx(0.035, abs=1e-9)
     assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
+
+
+def test_a_screen_seen_face_on_is_not_deepened_to_the_foot_under_its_neck():
+    # a monitor's screen seen from the front as a 7 mm slab; its foot reaches 9 cm behind
+    # it, but only through the neck behind the screen: the foot is not joined to the
+    # screen, so it says nothing of how deep the screen is (a chair's back stands on its
+    # seat, which does).  Taken as the object's end, it made every imagined monitor a
+    # 10 cm thick screen on a plate, which the retrieval took for a desk
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.3, -2.0, 1.0), (0.0, 0.0, 0.3))
+    foot = box("foot", (0, 0, 0.01), (0.23, 0.18, 0.02), object="monitor")
+    neck = box("neck", (0, 0.025, 0.15), (0.04, 0.03, 0.26), object="monitor")
+    screen = box("screen", (0, 0.0, 0.3), (0.5, 0.02, 0.3), object="monitor")
+    views = [DepthView(_depth_of_boxes([foot, neck, screen], T, intr), intr, T)]
+    slab = box("screen", (0, -0.0065, 0.3), (0.5, 0.007, 0.3), object="monitor")
+    seen_neck = box("neck", (0, 0.025, 0.06), (0.04, 0.03, 0.08), object="monitor")  # its foot
+    arr = Arrangement((foot, seen_neck, slab), (ground(),))
+    out, ids = deepen_thin_boxes(arr, views)
+    assert "screen" not in ids and out.cuboid("screen") is slab
+    # the same screen standing on its foot (joined to it) goes back to the foot's far edge
+    low = box("screen", (0, -0.0065, 0.17), (0.5, 0.007, 0.3), object="monitor")
+    out, ids = deepen_thin_boxes(Arrangement((foot, low), (ground(),)), [
+        DepthView(_depth_of_boxes([foot, box("s", (0, 0.0, 0.17), (0.5, 0.02, 0.3))], T,
+                                  intr), intr, T)])
+    assert ids == ["screen"]
+    got = out.cuboid("screen")
+    assert got.center[1] + got.size[1] / 2 == pytest.approx(0.09, abs=1e-9)
 
 
 def _monitor_before_a_wall():
