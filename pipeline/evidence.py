@@ -91,20 +91,26 @@ def visible_free_fraction(points: np.ndarray, views, margin: float = 0.0) -> flo
     return float(visible_free_mask(points, views, margin).mean())
 
 
+def _readings(points: np.ndarray, view, margin: float):
+    """(inside the picture, depth of each point along the view, the nearest reading around
+    its pixel (0: none), the tolerance there) of ``points`` in ``view``."""
+    uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
+    H, W = view.depth.shape
+    u = np.round(uv[:, 0])
+    v = np.round(uv[:, 1])
+    inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
+    iu = np.where(inside, u, 0).astype(int)
+    iv = np.where(inside, v, 0).astype(int)
+    d = view.nearest[iv, iu]
+    return inside, z, d, 3 * depth_noise(d) + margin
+
+
 def visible_free_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
     """Per point of ``points``: whether some view saw it as empty (clearly in front of
     its depth)."""
     seen = np.zeros(len(points), bool)
     for view in views:
-        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
-        H, W = view.depth.shape
-        u = np.round(uv[:, 0])
-        v = np.round(uv[:, 1])
-        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-        iu = np.where(inside, u, 0).astype(int)
-        iv = np.where(inside, v, 0).astype(int)
-        d = view.nearest[iv, iu]
-        tol = 3 * depth_noise(d) + margin
+        inside, z, d, tol = _readings(points, view, margin)
         seen |= inside & (d > 0) & (z < d - tol)
     return seen
 
@@ -114,15 +120,7 @@ def visible_hidden_mask(points: np.ndarray, views, margin: float = 0.0) -> np.nd
     clearly nearer than it, no reading at its pixel, or outside the picture)."""
     hidden = np.ones(len(points), bool)
     for view in views:
-        uv, z = project(transform(invert(view.T_world_cam), points), view.intrinsics)
-        H, W = view.depth.shape
-        u = np.round(uv[:, 0])
-        v = np.round(uv[:, 1])
-        inside = (z > 0) & (u >= 0) & (u < W) & (v >= 0) & (v < H)
-        iu = np.where(inside, u, 0).astype(int)
-        iv = np.where(inside, v, 0).astype(int)
-        d = view.nearest[iv, iu]
-        tol = 3 * depth_noise(d) + margin
+        inside, z, d, tol = _readings(points, view, margin)
         hidden &= ~inside | (d <= 0) | (d < z - tol)
     return hidden
 
