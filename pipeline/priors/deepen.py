@@ -16,10 +16,9 @@ desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where the
 joined to it (within ``joined_gap``; not one fixed to its back face) end within
 ``thin_fraction`` of its width behind it (a chair's back seen from the front goes back to
 the seat's rear edge; a monitor's screen not to the foot under its neck): furniture is
-built of thin
-panels, so what shows a panel's depth is the parts it is joined to (below), not a square
-footprint (a desk seen from the side became a block filling the hidden space under its
-top).  A part that is the only one seen of an object whose other parts the
+built of thin panels, so what shows a panel's depth is the parts it is joined to
+(below), not a square footprint (a desk seen from the side became a block filling the
+hidden space under its top).  A part that is the only one seen of an object whose other parts the
 segmentation's part map names (``object_parts``: a sofa seen from behind shows its back
 alone) is such a panel too, and nothing seen says its depth: it is left as seen.  A part
 goes no deeper than its object's other parts span along that axis, nor
