@@ -408,6 +408,25 @@ def object_reach(arr: Arrangement, c: Cuboid, u: np.ndarray) -> float:
     return float(np.concatenate(proj).max() - c.center @ u)
 
 
+def joined_reach(arr: Arrangement, c: Cuboid, u: np.ndarray, gap_max: float) -> float:
+    """How far the other parts of ``c``'s object joined to it (within ``gap_max``) reach
+    beyond ``c``'s centre along the unit vector ``u`` (-inf when none does), leaving out a
+    part fixed to ``c``'s face towards ``u`` (beyond it, overlapping it across that face,
+    as a monitor's neck behind its screen): it shows what is behind ``c``, not its depth."""
+    back = extent_along(c, u)[1]
+    across = [c.rotation[:, a] for a in range(3) if abs(float(c.rotation[:, a] @ u)) < 0.5]
+    reach = -np.inf
+    for o in arr.cuboids:
+        if o.object != c.object or o.id == c.id or gap(c, o) > gap_max:
+            continue
+        along = o.corners() @ u
+        if float(along.min()) >= back - gap_max and all(
+                overlap_along(c, o, w) > gap_max for w in across):
+            continue  # on c's face towards u
+        reach = max(reach, float(along.max()))
+    return reach - float(c.center @ u)
+
+
 def same_object_groups(arr: Arrangement) -> dict[int, int]:
     """Box index -> a label shared by the parts of one object that touch, directly or
     through its other parts."""

@@ -588,6 +588,23 @@ def _result(arr, contacts, bodies, system, lam, threshold, used, mu) -> Stabilit
                            contacts.count, contacts.penetrations, load)
 
 
+#: A contact carries load in the statics' solution when its load exceeds this share of
+#: the largest one (the rest is the solver's rounding).
+LOAD_SHARE_MIN = 1e-6
+
+
+def load_carrying(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float | None = None
+                  ) -> tuple[ContactSet, StabilityResult, np.ndarray]:
+    """The contacts of ``arr``, the statics' verdict, and per contact whether it carries
+    load in the solution (more than :data:`LOAD_SHARE_MIN` of the largest load; none when
+    the solve gave no loads)."""
+    cs = find_contacts(arr)
+    res = check_stability(arr, mu=mu, threshold=threshold, contacts=cs)
+    load = res.contact_load if res.contact_load is not None else np.zeros(cs.count)
+    top = float(np.max(load)) if len(load) else 0.0
+    return cs, res, load > LOAD_SHARE_MIN * top
+
+
 def contact_force_newtons(arr: Arrangement, mu: float = DEFAULT_MU,
                           side_friction: bool = False) -> tuple[ContactSet, np.ndarray]:
     """Physical contact forces (N) at every interface vertex of a solved arrangement.
@@ -642,6 +659,6 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
                    force_unit=1.0, blocks=None, _shared={})
 
 
-__all__ = ["check_stability", "StabilityResult", "BodyResidual", "build_bodies", "build_system",
+__all__ = ["check_stability", "load_carrying", "LOAD_SHARE_MIN", "StabilityResult", "BodyResidual", "build_bodies", "build_system",
            "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id",
            "glue_reasons"]

@@ -268,18 +268,14 @@ def _support_name(name: str) -> str | None:
 def loaded_pairs(arr) -> set[tuple[str, str]]:
     """The touching pairs of ``arr`` that carry load in the statics' solution (sorted
     name pairs), at the arrangement's friction (``meta.mu``, else 0.7)."""
-    from pipeline.contacts import find_contacts
     from pipeline.errors import InputError
-    from pipeline.stability import check_stability
+    from pipeline.stability import load_carrying
 
-    cs = find_contacts(arr)
     try:
-        res = check_stability(arr, mu=float(arr.meta.get("mu", 0.7)), contacts=cs)
+        cs, _, carries = load_carrying(arr, mu=float(arr.meta.get("mu", 0.7)))
     except InputError:
         return set()
-    load = res.contact_load if res.contact_load is not None else np.zeros(cs.count)
-    top = float(np.max(load)) if len(load) else 0.0
-    return {tuple(sorted(p)) for p, w in zip(cs.pairs, load.tolist()) if w > 1e-6 * top}
+    return {tuple(sorted(p)) for p, c in zip(cs.pairs, carries.tolist()) if c}
 
 
 def score(arr, points_input: np.ndarray, ann: Annotation, contacts: str = "support"

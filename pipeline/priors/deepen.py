@@ -64,9 +64,9 @@ from ..boxops import (
     broad_face,
     changed_boxes,
     extent_along,
-    gap,
     horizontal_axes,
     is_upright,
+    joined_reach,
     object_depth,
     object_reach,
     overlap_along,
@@ -293,25 +293,6 @@ def _pushed_to(arr, evidence, p: Params, pushes, why: str):
                 done.add(k)
                 break
     return arr
-
-
-def joined_reach(arr: Arrangement, c, u: np.ndarray, gap_max: float) -> float:
-    """How far the other parts of ``c``'s object that are joined to it (within ``gap_max``)
-    reach beyond ``c``'s centre along ``u`` (-inf when none does); a part fixed to ``c``'s
-    face towards ``u`` (behind it, overlapping it across that face, as a monitor's neck
-    behind its screen) does not count: it shows what is behind the panel, not its depth."""
-    back = float(c.center @ u + 0.5 * np.abs(c.rotation.T @ u) @ c.size)
-    across = [c.rotation[:, a] for a in range(3) if abs(float(c.rotation[:, a] @ u)) < 0.5]
-    proj = []
-    for o in arr.cuboids:
-        if o.object != c.object or o.id == c.id or gap(c, o) > gap_max:
-            continue
-        corners = o.corners() @ u
-        if float(corners.min()) >= back - gap_max and all(
-                overlap_along(c, o, w) > gap_max for w in across):
-            continue  # on the panel's back face
-        proj.append(corners)
-    return float(np.concatenate(proj).max() - c.center @ u) if proj else -np.inf
 
 
 def _face_on(arr, evidence, p: Params):

@@ -24,9 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boxops import fixed_components, horizontal_axes, is_upright, pushed
-from ..contacts import find_contacts
 from ..errors import InputError
-from ..stability import check_stability
+from ..stability import load_carrying
 from .base import Edit, Prior, principle_of
 
 
@@ -43,15 +42,12 @@ class Params:
 def _leaning(arr, ctx, p: Params):
     """(body members, wall id, supporter ids) of each rigid body that carries load at a
     wall while it rests on a box, in a stable order."""
-    cs = find_contacts(arr)
     try:
-        res = check_stability(arr, mu=ctx.mu, threshold=ctx.threshold, contacts=cs)
+        cs, res, carries = load_carrying(arr, mu=ctx.mu, threshold=ctx.threshold)
     except InputError:
         return []
-    if res.contact_load is None or not res.stable:
+    if not res.stable:
         return []
-    load = res.contact_load
-    top = float(np.max(load)) if len(load) else 0.0
     ids = set(arr.ids)
     body = fixed_components(list(arr.ids), arr.contacts)
     members: dict[int, list[str]] = {}
@@ -61,7 +57,7 @@ def _leaning(arr, ctx, p: Params):
     at_wall: dict[int, set[str]] = {}
     below: dict[int, set[str]] = {}
     for i, (a, b) in enumerate(cs.pairs):
-        if b.startswith("wall:") and a in ids and load[i] > 1e-6 * top:
+        if b.startswith("wall:") and a in ids and carries[i]:
             at_wall.setdefault(body[a], set()).add(b)
         if a in ids and b in ids and body[a] != body[b]:
             n = cs.normal[i]  # from b into a
@@ -74,14 +70,6 @@ def _leaning(arr, ctx, p: Params):
             for w in sorted(at_wall[k]):
                 out.append((sorted(members[k]), w, sorted(below[k])))
     return out
-
-
-def _observed_corners(c) -> np.ndarray:
-    """(8, 3) corners of ``c`` as the sensor saw it (its observed box, else itself)."""
-    if c.observed is None:
-        return c.corners()
-    signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
-    return (signs * np.asarray(c.observed.size) / 2) @ c.rotation.T + c.observed.center
 
 
 def _push(arr, load_ids, wall, sup, p: Params):
@@ -103,7 +91,9 @@ def _push(arr, load_ids, wall, sup, p: Params):
     ax, side, u = best
     face = float(sup.center @ u) + float(sup.size[ax]) / 2
     loads = [arr.cuboids[arr.index[m]] for m in load_ids]
-    want = max(float(np.max(_observed_corners(c) @ u)) for c in loads) - face
+    seen = [c if c.observed is None else c.with_(center=c.observed.center, size=c.observed.size)
+            for c in loads]  # as the sensor saw them
+    want = max(float(np.max(c.corners() @ u)) for c in seen) - face
     # the pushed face's corners stay in front of the wall
     corners = sup.corners()
     on_face = corners[(corners - sup.center) @ u > 0]
@@ -121,9 +111,10 @@ def apply(arr, evidence, p: Params, ctx):
     if not walls:
         return
     tried: set[tuple[str, ...]] = set()
+    leaning = _leaning(final, ctx, p)  # again only when an edit changes the arrangement
     while True:
         proposal = None
-        for load_ids, w, sups in _leaning(final, ctx, p):
+        for load_ids, w, sups in leaning:
             for s in sups:
                 key = (*load_ids, s, w)
                 if key in tried or s in load_ids:
@@ -144,6 +135,7 @@ def apply(arr, evidence, p: Params, ctx):
                                f"{s} pushed {1000 * grow:.0f} mm under it towards {w}")
         if v.ok:
             final = v.arrangement
+            leaning = _leaning(final, ctx, p)
 
 
 PRIOR = Prior("from_below", "settle", Params(), apply, principle_of(__doc__))
