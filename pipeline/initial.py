@@ -238,7 +238,9 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
         scribble_labels = grabcut_scribbles(scan.image, scan.depth, scan.scribbles, allowed)
     labels, names = segment_objects(world, obj_mask, cell, instance=inst, pixels=scan.pixels,
                                     scribble_labels=scribble_labels,
-                                    min_points=max(30, int(MIN_OBJECT_FRACTION * len(world))))
+                                    min_points=max(30, int(MIN_OBJECT_FRACTION * len(world))),
+                                    depth=scan.depth[scan.pixels[:, 0], scan.pixels[:, 1]]
+                                    if camera else None)
     if camera and segmentation in ("auto", "cluster") and any(
             nm.startswith("cluster") for nm in names):
         from .segment import split_clusters

@@ -90,18 +90,77 @@ def _canonical(lab: np.ndarray) -> np.ndarray:
     return out
 
 
+#: Pixels of one mask this far apart (pixels, in rows and columns) are neighbours in
+#: :func:`image_components`: the sensor drops pixels of a surface seen at a grazing angle.
+MASK_LINK_PX = 2
+
+
+def image_components(pixels: np.ndarray, depth: np.ndarray,
+                     rel: float = FLYING_REL_JUMP, radius: int = MASK_LINK_PX) -> np.ndarray:
+    """(n,) int: components of the pixels ``(n, 2)`` (row, column) with readings
+    ``depth (n,)`` that the image links through surface steps.
+
+    Two pixels within ``radius`` of each other are linked when their depths differ by at
+    most ``rel`` of the larger one: a surface seen at any angle the sensor measures
+    steps less than that across a dropped pixel or two, while a larger step is a
+    silhouette (:func:`flying_pixels` uses the same jump).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n = len(pixels)
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    v, u = pixels[:, 0].astype(np.int64), pixels[:, 1].astype(np.int64)
+    v0, u0 = v.min(), u.min()
+    H, W = int(v.max() - v0) + 1, int(u.max() - u0) + 1
+    index = np.full((H + 2 * radius, W + 2 * radius), -1, dtype=np.int64)
+    index[v - v0 + radius, u - u0 + radius] = np.arange(n)
+    d = np.asarray(depth, float)
+    rows, cols = [], []
+    for dv in range(0, radius + 1):
+        for du in range(-radius, radius + 1):
+            if (dv, du) <= (0, 0):
+                continue
+            j = index[v - v0 + radius + dv, u - u0 + radius + du]
+            ok = j >= 0
+            i, j = np.nonzero(ok)[0], j[ok]
+            near = np.abs(d[i] - d[j]) <= rel * np.maximum(d[i], d[j])
+            rows.append(i[near])
+            cols.append(j[near])
+    r, c = np.concatenate(rows), np.concatenate(cols)
+    graph = coo_matrix((np.ones(len(r), dtype=np.int8), (r, c)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
 def _main_components(world: np.ndarray, sel: np.ndarray, cell: float,
-                     keep_share: float = 0.05) -> np.ndarray:
+                     keep_share: float = 0.05, pixels: np.ndarray | None = None,
+                     depth: np.ndarray | None = None) -> np.ndarray:
     """Drop stray points of a mask (mislabelled edge pixels): keep the proximity clusters
-    holding at least ``keep_share`` of the largest one."""
+    holding at least ``keep_share`` of the largest one.
+
+    With the mask's ``pixels (n, 2)`` and their ``depth (n,)`` readings, a smaller
+    cluster that the image links to a kept one through surface steps
+    (:func:`image_components`) is kept too.  A depth sensor's noise and quantization
+    grow with the square of the distance, and it drops pixels of a surface seen at a
+    grazing angle: such a surface comes as layers and specks along the rays that
+    proximity alone takes apart (a sofa's seat seen along its length, a table leg 4 m
+    away read at three depths 6 cm apart), while a stray edge pixel lies a silhouette's
+    step behind its object.  A lone point (proximity noise) stays out even when the
+    image links it: one reading off along its ray stretches a box.
+    """
     idx = np.nonzero(sel)[0]
     lab = cluster(world[idx], cell)
     if not (lab >= 0).any():
         return sel
     counts = np.bincount(lab[lab >= 0])
     good = np.nonzero(counts >= keep_share * counts.max())[0]
+    keep = np.isin(lab, good)
+    if pixels is not None and depth is not None:
+        comp = image_components(pixels[idx], depth[idx])
+        keep |= np.isin(comp, np.unique(comp[keep])) & (lab >= 0)
     out = np.zeros_like(sel)
-    out[idx[np.isin(lab, good)]] = True
+    out[idx[keep]] = True
     return out
 
 
@@ -164,7 +223,8 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
                     instance: np.ndarray | None = None,
                     pixels: np.ndarray | None = None,
                     scribble_labels: np.ndarray | None = None,
-                    min_points: int = 30) -> tuple[np.ndarray, list[str]]:
+                    min_points: int = 30,
+                    depth: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """Assign every object point an object index.
 
     Parameters
@@ -175,6 +235,8 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
     instance : (n,) int or None, given ids (0 = none)
     pixels : (n, 2) int or None, (v, u) per point (for scribble labels)
     scribble_labels : (H, W) int or None, GrabCut output
+    depth : (n,) float or None, each point's depth reading (with ``pixels``: a mask's
+        points the image links to its main body stay, :func:`_main_components`)
 
     Returns
     -------
@@ -190,7 +252,7 @@ def segment_objects(world: np.ndarray, object_mask: np.ndarray, cell: float, *,
         for i in ids:
             sel = object_mask & (instance == i)
             if sel.sum() >= min(min_points, MIN_INSTANCE_POINTS):  # given masks are trusted
-                sel = _main_components(world, sel, cell)
+                sel = _main_components(world, sel, cell, pixels=pixels, depth=depth)
                 labels[sel] = len(names)
                 names.append(f"inst{int(i)}")
         return labels, names

@@ -57,6 +57,59 @@ def test_segment_objects_uses_instance_ids_and_drops_strays():
     assert (labels[1:800] == 0).all() and (labels[800:] == 1).all()
 
 
+def _grazing_mask():
+    """A mask seen by a camera (f = 525 px): a face-on patch 2 m away, then the same
+    surface receding at a grazing angle (4 cm deeper per column, every other column
+    dropped as a sensor drops such pixels), a stray 5 x 5 patch a silhouette's step
+    (1.5 m) behind its left edge, and one lone reading 5 cm off inside the patch."""
+    f, cu, cv = 525.0, 320.0, 240.0
+    px, dep = [], []
+    for u in range(300, 360):  # face-on: one depth
+        for v in range(100, 141):
+            px.append((v, u))
+            dep.append(2.0)
+    for k, u in enumerate(range(360, 420, 2)):  # receding, every other column read
+        for v in range(100, 141):
+            px.append((v, u))
+            dep.append(2.0 + 0.08 * (k + 1))
+    ramp = slice(60 * 41, len(px))
+    for u in range(295, 300):  # stray edge pixels reading the wall behind
+        for v in range(110, 115):
+            px.append((v, u))
+            dep.append(3.5)
+    stray = slice(ramp.stop, len(px))
+    pixels, depth = np.array(px), np.array(dep)
+    lone = int(np.nonzero((pixels[:, 0] == 120) & (pixels[:, 1] == 330))[0][0])
+    depth[lone] = 2.05  # one reading off along its ray, inside the patch
+    world = np.stack([(pixels[:, 1] - cu) * depth / f, (pixels[:, 0] - cv) * depth / f,
+                      depth], axis=1)
+    return world, pixels, depth, ramp, stray, lone
+
+
+def test_a_grazing_surface_stays_whole_and_strays_go():
+    # a sofa's seat seen along its length (sofa-7016 of a development pool): its far
+    # part comes as one column of points per read pixel column, specks by proximity
+    from pipeline.segment import image_components
+
+    world, pixels, depth, ramp, stray, lone = _grazing_mask()
+    inst = np.full(len(world), 5)
+    alone = segment_objects(world, np.ones(len(world), bool), 0.01, instance=inst)[0]
+    assert (alone[ramp] == -1).all()  # proximity alone takes the far part away ...
+    labels, names = segment_objects(world, np.ones(len(world), bool), 0.01, instance=inst,
+                                    pixels=pixels, depth=depth)
+    assert names == ["inst5"]
+    assert (labels[ramp] == 0).all()  # ... the image links it to the patch
+    assert (labels[stray] == -1).all()  # a silhouette's step behind: still a stray
+    assert labels[lone] == -1  # a lone reading off its neighbours: still an outlier
+    keep = np.ones(len(world), bool)
+    keep[stray], keep[lone] = False, False
+    assert (labels[keep] == 0).all()
+    # the image's links: the patch and the ramp one component, the stray patch apart
+    comp = image_components(pixels, depth)
+    assert len(np.unique(comp[keep & (np.arange(len(world)) != lone)])) == 1
+    assert not set(comp[stray]) & set(comp[:ramp.start])
+
+
 def test_an_instance_glimpsed_with_as_few_points_as_a_box_needs_is_kept():
     # room-1002 of Table 1: wall-shelf brackets under their boards, 5.8 m away, show
     # 10-29 points; initial_cuboids fits a box to as few as an instance needs
