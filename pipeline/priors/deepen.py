@@ -39,7 +39,9 @@ by no more than ``joined_min`` or half as far as on the side away from it: then 
 view ended it, while a part behind the other's middle (a monitor's neck behind its
 screen) was ended by its own width.  A leg under a top or a box on a board is not
 joined side by side; a rail between two legs is no wider across the joint than they
-are.
+are.  A panel seen face-on across the joint's axis (a sofa's arm seen from the side,
+whose end meets the back) is not pushed along it: its thickness is what the face-on
+rule says, not the length of the part beside it.
 
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
 their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
@@ -138,6 +140,27 @@ def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
     return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
 
 
+def is_panel(arr: Arrangement, c, axis: int, p: Params) -> bool:
+    """Whether ``c``, thin along its horizontal ``axis``, is a panel of furniture: a part
+    of an object of several parts whose face across ``axis`` is as wide as half its
+    height or ``big_face``, and as tall as half its width (a desk's side, a sofa's arm,
+    a chair's back; not a leg or a post)."""
+    width = max((float(c.size[a]) for a in horizontal_axes(c) if a != axis), default=0.0)
+    height = float(c.size[up_axis(c)])
+    return (not single_part(arr, c)
+            and (width >= p.thin_fraction * height or width >= p.big_face)
+            and height >= p.thin_fraction * width)
+
+
+def seen_face_on(c, axis: int, eye: np.ndarray, deg: float) -> bool:
+    """Whether the horizontal view from ``eye`` to ``c`` runs within ``deg`` of its
+    ``axis``: the camera looks at the face across ``axis``."""
+    look = np.asarray(c.center, float) - eye
+    look[2] = 0.0
+    n = np.linalg.norm(look)
+    return n > 1e-9 and abs(float(c.rotation[:, axis] @ look)) / n >= np.cos(np.radians(deg))
+
+
 def away_from(c, axis: int, eye: np.ndarray) -> np.ndarray:
     """Box ``c``'s ``axis`` turned away from the camera at ``eye``."""
     u = c.rotation[:, axis]
@@ -177,6 +200,9 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 # ... and q reaches further across it, away from the eye, much further
                 # than on the side the camera sees (a part behind the other's middle, as
                 # a monitor's neck behind its screen, is not cut short by the view)
+                if (c.size[a] < p.thin_fraction * max(float(c.size[n]), 1e-9)
+                        and is_panel(arr, c, a, p) and seen_face_on(c, a, eye, p.face_on_part_deg)):
+                    continue  # a panel seen face-on: its thickness is the face-on rule's
                 u = away_from(c, a, eye)
                 length = reach_past(c, q, u, p)
                 if length is None:

@@ -322,6 +322,30 @@ def test_a_part_is_pushed_along_its_neighbour_only_where_the_view_cut_it_short()
     assert len(pushes) == 1 and pushes[0][3] == pytest.approx(0.5)
 
 
+def test_a_panel_seen_face_on_is_not_pushed_along_its_neighbour():
+    """A sofa's arm seen from the side shows its whole outer face and is fitted a few
+    centimetres thick; its back end meets the sofa's back, which runs 2 m on away from
+    the camera.  The view did not cut the arm short along the back: its thickness is
+    what the face-on rule decides (a panel goes only as deep as the parts joined to it
+    end within half its width), so it is not pushed 2 m along the back (sofa-104707 of
+    a held-out pool grew its arm 1.1 m this way).  A part that shows the camera only a
+    narrow strip across that axis is still pushed (the test above)."""
+    eye = np.array([-3.0, 0.1, 0.8])
+    p = deepen.Params()
+    back = box("back", (0.0, 0.33, 0.44), (2.0, 0.14, 0.87), object="sofa")
+    arm = box("arm", (-0.99, 0.0, 0.28), (0.03, 0.52, 0.56), object="sofa")
+    arr = Arrangement((arm, back), (ground(),))
+    assert deepen.is_panel(arr, arm, 0, p) and deepen.seen_face_on(arm, 0, eye, p.face_on_part_deg)
+    assert deepen.joined_pushes(arr, eye, p) == []
+    # the same part, a post 5 cm wide rather than a panel, is cut short by the view
+    post = box("arm", (-0.99, 0.235, 0.28), (0.03, 0.05, 0.56), object="sofa")
+    arr = Arrangement((post, back), (ground(),))
+    assert not deepen.is_panel(arr, post, 0, p)
+    pushes = deepen.joined_pushes(arr, eye, p)
+    assert [(k, axis) for k, axis, _u, _l in pushes] == [(0, 0)]
+    assert pushes[0][3] == pytest.approx(1.975)
+
+
 def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     """Two boards of one object, the same length and parallel, one above the other: the
     lower one, fitted as its front strip and seen obliquely (so no face-on rule applies),
