@@ -156,7 +156,7 @@ def _main_components(world: np.ndarray, sel: np.ndarray, cell: float,
     counts = np.bincount(lab[lab >= 0])
     good = np.nonzero(counts >= keep_share * counts.max())[0]
     keep = np.isin(lab, good)
-    if pixels is not None and depth is not None:
+    if pixels is not None and depth is not None and not keep.all():
         comp = image_components(pixels[idx], depth[idx])
         keep |= np.isin(comp, np.unique(comp[keep])) & (lab >= 0)
     out = np.zeros_like(sel)
