@@ -7,10 +7,13 @@ fitted a few millimetres deep along the view because its depth is not in the dat
 box whose extent along a horizontal axis within ``face_on_part_deg`` of the view is
 below ``thin_fraction`` of its other horizontal extent (within ``face_on_deg`` for a
 slab standing on its edge that is a box of its own or shows a face of
-``big_face`` metres: a box in a pile seen obliquely, a sofa's base) has its back face
-pushed away from the camera towards that other extent (a square footprint), in
-``steps`` increments, as far as no view saw the added space empty and nothing is
-entered.  A panel of an object of several parts (its seen sides within ``thin_fraction``
+``big_face`` metres: a box in a pile seen obliquely, a sofa's base, a seat cushion seen
+along the sofa) has its back face pushed away from the camera towards that other extent
+(a square footprint), in ``steps`` increments, as far as no view saw the added space
+empty and nothing is entered.  Seen at a grazing angle, such a slab's depth is hidden
+behind its own face and its neighbours as much as seen face-on; where the view saw its
+end and past it, the space a push adds was seen empty and the push stops there, so the
+angle is left to the views (``face_on_deg`` short of a view exactly along the face).  A panel of an object of several parts (its seen sides within ``thin_fraction``
 of each other, or its seen face at least ``big_face`` wide, which no leg or post is: a
 desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where the parts
 joined to it (within ``joined_gap``; not one fixed to its back face) end within
@@ -90,7 +93,7 @@ from .base import Edit, Prior, principle_of
 class Params:
     thin_fraction: float = 0.5  #: thin extent / other horizontal extent of a slab
     face_on_part_deg: float = 45.0  #: degrees between the thin axis and the view
-    face_on_deg: float = 70.0  #: degrees, for a box of its own or a big face
+    face_on_deg: float = 89.0  #: degrees, for a box of its own or a big face
     big_face: float = 0.2  #: metres: both sides of a big seen face
     steps: int = 4  #: increments of the push
     resolution: float = 0.002  #: metres: how finely a blocked push is found
