@@ -344,9 +344,7 @@ def _face_on(arr, evidence, p: Params):
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
             u = c.rotation[:, axis] * (1.0 if side else -1.0)
-            panel = (not single_part(arr, c)
-                     and (width >= p.thin_fraction * height or width >= p.big_face)
-                     and height >= p.thin_fraction * width)
+            panel = is_panel(arr, c, axis, p)
             # a panel's depth is what the parts joined to it say (a chair's back goes back
             # to the seat it stands on; a monitor's screen not to the foot under its neck)
             reach = ((joined_reach(arr, c, u, p.joined_gap) if panel else object_reach(arr, c, u))
