@@ -105,24 +105,25 @@ def _readings(points: np.ndarray, view, margin: float):
     return inside, z, d, 3 * depth_noise(d) + margin
 
 
-def visible_free_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
-    """Per point of ``points``: whether some view saw it as empty (clearly in front of
-    its depth)."""
+def visible_masks(points: np.ndarray, views, margin: float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Per point of ``points``, from one projection into each view: whether some view saw
+    it as empty (clearly in front of its depth), and whether every view was kept from
+    seeing it (a reading clearly nearer than it, no reading at its pixel, or outside the
+    picture)."""
     seen = np.zeros(len(points), bool)
-    for view in views:
-        inside, z, d, tol = _readings(points, view, margin)
-        seen |= inside & (d > 0) & (z < d - tol)
-    return seen
-
-
-def visible_hidden_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
-    """Per point of ``points``: whether every view was kept from seeing it (a reading
-    clearly nearer than it, no reading at its pixel, or outside the picture)."""
     hidden = np.ones(len(points), bool)
     for view in views:
         inside, z, d, tol = _readings(points, view, margin)
+        seen |= inside & (d > 0) & (z < d - tol)
         hidden &= ~inside | (d <= 0) | (d < z - tol)
-    return hidden
+    return seen, hidden
+
+
+def visible_free_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
+    """Per point of ``points``: whether some view saw it as empty (clearly in front of
+    its depth; :func:`visible_masks`)."""
+    return visible_masks(points, views, margin)[0]
 
 
 #: Added volume lies, taken as a whole, in front of what the sensor saw when the median
@@ -234,12 +235,13 @@ class Evidence:
         ``max_fraction`` of the samples."""
         return bool(self.views) and self.free_fraction(points) > max_fraction
 
-    def hidden_fraction(self, points: np.ndarray) -> float:
-        """Share of ``points`` no view could see (:func:`visible_hidden_mask`); 1 without
-        views."""
+    def free_and_hidden(self, points: np.ndarray) -> tuple[float, float]:
+        """The share of ``points`` some view saw empty (0 without views) and the share no
+        view could see (1 without views), from one projection (:func:`visible_masks`)."""
         if not len(points) or not self.views:
-            return 1.0
-        return float(visible_hidden_mask(points, self.views, self.margin).mean())
+            return 0.0, 1.0
+        free, hidden = visible_masks(points, self.views, self.margin)
+        return float(free.mean()), float(hidden.mean())
 
     def in_front(self, points: np.ndarray) -> bool:
         """Whether some view saw past the samples ``points`` taken as a whole."""
@@ -264,4 +266,4 @@ class Evidence:
 
 
 __all__ = ["Evidence", "DepthView", "depth_noise", "slab_samples", "visible_free_fraction",
-           "visible_free_mask", "seen_in_front", "observed_points", "FREE_FRACTION_MAX"]
+           "visible_free_mask", "visible_masks", "seen_in_front", "observed_points", "FREE_FRACTION_MAX"]

@@ -659,6 +659,6 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
                    force_unit=1.0, blocks=None, _shared={})
 
 
-__all__ = ["check_stability", "load_carrying", "LOAD_SHARE_MIN", "StabilityResult", "BodyResidual", "build_bodies", "build_system",
-           "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id",
+__all__ = ["check_stability", "load_carrying", "LOAD_SHARE_MIN", "StabilityResult",
+           "BodyResidual", "build_bodies", "build_system", "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id",
            "glue_reasons"]

@@ -13,8 +13,9 @@ along the sofa) has its back face pushed away from the camera towards that other
 empty and nothing is entered.  Seen at a grazing angle, such a slab's depth is hidden
 behind its own face and its neighbours as much as seen face-on; where the view saw its
 end and past it, the space a push adds was seen empty and the push stops there, so the
-angle is left to the views (``face_on_deg`` short of a view exactly along the face).  A panel of an object of several parts (its seen sides within ``thin_fraction``
-of each other, or its seen face at least ``big_face`` wide, which no leg or post is: a
+angle is left to the views (``face_on_deg`` short of a view exactly along the face).
+A panel of an object of several parts (its seen sides within ``thin_fraction`` of each
+other, or its seen face at least ``big_face`` wide, which no leg or post is: a
 desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where the parts
 joined to it (within ``joined_gap``; not one fixed to its back face) end within
 ``thin_fraction`` of its width behind it (a chair's back seen from the front goes back to
@@ -155,13 +156,29 @@ def is_panel(arr: Arrangement, c, axis: int, p: Params) -> bool:
             and height >= p.thin_fraction * width)
 
 
-def seen_face_on(c, axis: int, eye: np.ndarray, deg: float) -> bool:
-    """Whether the horizontal view from ``eye`` to ``c`` runs within ``deg`` of its
-    ``axis``: the camera looks at the face across ``axis``."""
+def horizontal_look(c, eye: np.ndarray) -> np.ndarray | None:
+    """The unit horizontal direction from ``eye`` to ``c``'s centre (cameras often look
+    down steeply); None when the eye is right above or below it."""
     look = np.asarray(c.center, float) - eye
     look[2] = 0.0
     n = np.linalg.norm(look)
-    return n > 1e-9 and abs(float(c.rotation[:, axis] @ look)) / n >= np.cos(np.radians(deg))
+    return look / n if n >= 1e-9 else None
+
+
+def seen_face_on(c, axis: int, eye: np.ndarray, deg: float) -> bool:
+    """Whether the horizontal view from ``eye`` to ``c`` runs within ``deg`` of its
+    ``axis``: the camera looks at the face across ``axis``."""
+    look = horizontal_look(c, eye)
+    return look is not None and abs(float(c.rotation[:, axis] @ look)) >= np.cos(np.radians(deg))
+
+
+def face_on_panel_axes(arr: Arrangement, c, eye: np.ndarray, p: Params) -> set[int]:
+    """The horizontal axes of ``c`` across which it is a panel (:func:`is_panel`), thin
+    along them, that the camera sees face-on (within ``p.face_on_part_deg``)."""
+    h = horizontal_axes(c)
+    return {a for a in h
+            if c.size[a] < p.thin_fraction * max([float(c.size[b]) for b in h if b != a] + [1e-9])
+            and is_panel(arr, c, a, p) and seen_face_on(c, a, eye, p.face_on_part_deg)}
 
 
 def away_from(c, axis: int, eye: np.ndarray) -> np.ndarray:
@@ -187,6 +204,7 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
         if c.object is None or c.extra.get("hallucinated") or not is_upright(c):
             continue
         cz0, cz1 = z_range(c)
+        face_on = face_on_panel_axes(arr, c, eye, p)
         for q in arr.cuboids:
             if q is c or q.object != c.object or not is_upright(q):
                 continue
@@ -203,8 +221,7 @@ def joined_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 # ... and q reaches further across it, away from the eye, much further
                 # than on the side the camera sees (a part behind the other's middle, as
                 # a monitor's neck behind its screen, is not cut short by the view)
-                if (c.size[a] < p.thin_fraction * max(float(c.size[n]), 1e-9)
-                        and is_panel(arr, c, a, p) and seen_face_on(c, a, eye, p.face_on_part_deg)):
+                if a in face_on:
                     continue  # a panel seen face-on: its thickness is the face-on rule's
                 u = away_from(c, a, eye)
                 length = reach_past(c, q, u, p)
@@ -330,11 +347,9 @@ def _face_on(arr, evidence, p: Params):
     eye = evidence.eye
     for k in range(len(arr.cuboids)):
         c = arr.cuboids[k]
-        look = c.center - eye
-        look[2] = 0.0  # the horizontal viewing direction (cameras often look down steeply)
-        if np.linalg.norm(look) < 1e-9:
+        look = horizontal_look(c, eye)
+        if look is None:
             continue
-        look /= np.linalg.norm(look)
         horizontal = horizontal_axes(c)
         height = float(c.size[up_axis(c)])
         for axis in horizontal:

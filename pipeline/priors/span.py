@@ -16,8 +16,8 @@ bottom board), through space no view saw empty
 from every view (something nearer in front of it, or no reading there).  A part whose
 end a view saw keeps it: the space beyond it seen empty, or seen at all (a monitor's
 foot lying on a desk, the desk top in plain view beside it: a slab two centimetres above
-a seen surface is never "seen empty", the depth noise is wider).  The gate rejects a growth into another object.  It
-runs after ``join_parts``: a leg seen only at its foot is a flat stub, and no board,
+a seen surface is never "seen empty", the depth noise is wider).  The gate rejects a
+growth into another object.  It runs after ``join_parts``: a leg seen only at its foot is a flat stub, and no board,
 until it is reached up to its seat.
 """
 
@@ -99,10 +99,10 @@ def apply(arr, evidence, p: Params, ctx):
     for _obj, k in order:
         for ax, side, length in reaches(arr, k, p):
             x = Extension(k, ax, side, length)
-            samples = slab_samples(arr, x)
-            if evidence.views and evidence.free_fraction(samples) > FREE_FRACTION_MAX:
+            free, hidden = evidence.free_and_hidden(slab_samples(arr, x))
+            if free > FREE_FRACTION_MAX:
                 continue  # a view saw the part's end: the space beyond it is empty
-            if evidence.hidden_fraction(samples) < p.hidden_min:
+            if hidden < p.hidden_min:
                 continue  # nothing hid the space beyond its end: the view saw it end
             c = arr.cuboids[k]  # as the accepted growths left it: both ends' growths add up
             v = yield Edit((pushed(c, ax, side, length),),
