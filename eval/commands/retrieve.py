@@ -54,6 +54,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--fit", choices=("axis", "uniform"), default="axis",
                    help="scale models into the structure's box per axis (default) or "
                         "keeping their proportions")
+    p.add_argument("--stretch-cost", type=float, default=None, metavar="X",
+                   help="score lost, when kinds are compared, per factor of e of uneven "
+                        "stretch of a model into the object's box (default 0.5; 0: the "
+                        "paper's score alone)")
     p.add_argument("--no-icp", action="store_true", help="skip the ICP refinement")
     p.add_argument("--min-cuboids", type=int, default=2, metavar="N",
                    help="retrieve models for objects of at least N cuboids (default 2); "
@@ -117,6 +121,9 @@ def run(args: argparse.Namespace) -> int:
             raise InputError("--kinds: give at least one kind, e.g. --kinds chair,table")
     if args.min_cuboids < 1:
         raise InputError(f"--min-cuboids: must be at least 1, got {args.min_cuboids}")
+    if args.stretch_cost is not None and not (np.isfinite(args.stretch_cost)
+                                              and args.stretch_cost >= 0):
+        raise InputError(f"--stretch-cost: a number >= 0, got {args.stretch_cost}")
     if args.scan is not None and not args.scan.exists():
         raise InputError(f"--scan {args.scan}: no such file or folder")
     check_out(args.out)
@@ -137,7 +144,8 @@ def run(args: argparse.Namespace) -> int:
                          "--scan the input of this result?")
     else:
         notes.append("no --scan: no ICP refinement, models placed by the structure alone")
-    cfg = RetrieveConfig(fit=args.fit, icp=not args.no_icp, kinds=kinds, seed=args.seed)
+    cost = {} if args.stretch_cost is None else {"stretch_cost": args.stretch_cost}
+    cfg = RetrieveConfig(fit=args.fit, icp=not args.no_icp, kinds=kinds, seed=args.seed, **cost)
     with Progress(None, "unseen retrieve") as bar:
         results = retrieve(arr, models, points, cfg, progress=lambda d, t: bar.update(),
                            min_cuboids=args.min_cuboids)

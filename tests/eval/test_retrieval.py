@@ -90,6 +90,14 @@ def test_retrieve_end_to_end(models: Path, furniture, tmp_path: Path, capsys) ->
     data2 = json.loads((out2 / "retrieval.json").read_text())
     assert data2["structure"] == "initial"
     assert {o["kind"] for o in data2["objects"]} <= {"chair", "table"}
+    # the paper's score alone: no stretch cost, kinds compared by the score
+    out3 = tmp_path / "out3"
+    assert main(["retrieve", str(res), "--models", str(models), "--out", str(out3),
+                 "--stretch-cost", "0"]) == 0
+    (obj3,) = [o for o in json.loads((out3 / "retrieval.json").read_text())["objects"]
+               if o["object"] == "chair0"]
+    assert obj3["kind_score"] == obj3["score"] and obj["kind_score"] == pytest.approx(
+        obj["score"] - 0.5 * obj["stretch"], abs=1e-5)
 
 
 @pytest.mark.parametrize("args, needle", [
@@ -102,6 +110,10 @@ def test_retrieve_end_to_end(models: Path, furniture, tmp_path: Path, capsys) ->
     (["retrieve", "{res}", "--models", "{models}", "--out", "{tmp}/o", "--scan", "{tmp}/none"],
      "--scan"),
     (["retrieve", "{tmp}", "--models", "{models}", "--out", "{tmp}/o"], "arrangement.json"),
+    (["retrieve", "{res}", "--models", "{models}", "--out", "{tmp}/o", "--stretch-cost", "-1"],
+     "--stretch-cost"),
+    (["retrieve", "{res}", "--models", "{models}", "--out", "{tmp}/o", "--stretch-cost", "nan"],
+     "--stretch-cost"),
     (["models", "make", "--out", "{tmp}/o", "--kinds", "bed"], "--kinds"),
     (["models", "make", "--out", "{tmp}/o", "--n-per-kind", "0"], "--n-per-kind"),
 ])

@@ -12,6 +12,7 @@ import pytest
 from pipeline.errors import InputError
 from pipeline.model import box, rotation_about_z
 from pipeline.retrieve import (
+    STRETCH_COST,
     TOL_MIN,
     RetrieveConfig,
     Structure,
@@ -22,6 +23,7 @@ from pipeline.retrieve import (
     retrieve_object,
     sample_surface,
     score,
+    stretch,
 )
 
 #: A chair's boxes in its own frame (back at +y): seat, four legs, back board.
@@ -102,6 +104,42 @@ def test_retrieval_recovers_kind_and_pose_and_is_invariant_to_motion() -> None:
         scores.append(r.best.score)
         assert r.per_kind["table"].score < r.best.score - 0.2
     assert max(scores) - min(scores) < 0.01
+
+
+def test_stretch_is_the_log_ratio_of_the_axis_scales_and_zero_keeping_proportions() -> None:
+    model = make_model(*_mesh(TABLE), "table")          # extent 1.6 x 0.7 x 0.74
+    st = Structure.of(_cuboids(CHAIR, 0.4))             # 0.46 x 0.44 x 0.9 at yaw 0.4
+    M = placements(model, st, np.array([0.4]), "axis")
+    k = np.array([0.46 / 1.6, 0.44 / 0.7, 0.9 / 0.74])
+    assert stretch(model, M)[0] == pytest.approx(np.log(k.max() / k.min()), rel=1e-6)
+    assert stretch(model, placements(model, st, np.array([0.4]), "uniform"))[0] == pytest.approx(0.0, abs=1e-9)
+    own = make_model(*_mesh(CHAIR), "chair")           # its own box: no stretch at all
+    assert stretch(own, placements(own, st, np.array([0.4]), "axis"))[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_kinds_are_compared_less_their_stretch_and_variants_by_the_score_alone() -> None:
+    # a block of the object's own proportions and one of a plank's: stretched into the
+    # object's box, both are solid boxes that fill it exactly (S = 2 each)
+    cube = [((0, 0, 0.25), (0.5, 0.5, 0.5))]
+    models = (make_model(*_mesh(cube), "block", file="cube"),
+              make_model(*_mesh([((0, 0, 0.1), (2.0, 0.5, 0.2))]), "plank", file="plank"))
+    cubs = _cuboids(cube, 0.3)
+    paper = retrieve_object("o", cubs, models, config=RetrieveConfig(stretch_cost=0.0))
+    assert paper.per_kind["block"].score == pytest.approx(paper.per_kind["plank"].score, abs=0.01)
+    r = retrieve_object("o", cubs, models, config=RetrieveConfig())
+    plank = r.per_kind["plank"]
+    assert r.best.kind == "block" and r.runner_up.kind == "plank"
+    assert plank.stretch == pytest.approx(np.log(4 * 2.5), rel=1e-6)   # x / 4, z * 2.5
+    assert plank.kind_score == pytest.approx(plank.score - STRETCH_COST * plank.stretch)
+    assert r.best.stretch == pytest.approx(0.0, abs=1e-9)
+    # within a kind the paper's score alone: a chair stretched into a wider chair's box
+    # still beats a block of the wide chair's own proportions that is also called a chair
+    models = (make_model(*_mesh(CHAIR), "chair", file="chair"),
+              make_model(*_mesh([((0, 0, 0.45), (0.69, 0.44, 0.9))]), "chair", file="block"))
+    wide = [((c[0] * 1.5, c[1], c[2]), (s[0] * 1.5, s[1], s[2])) for c, s in CHAIR]
+    r = retrieve_object("o", _cuboids(wide), models, config=RetrieveConfig())
+    assert r.best.file == "chair" and r.best.stretch == pytest.approx(np.log(1.5), rel=1e-3)
+    assert r.best.score == pytest.approx(2.0, abs=0.01) and r.coarse[1] < r.coarse[0] - 0.2
 
 
 def test_kind_filter_is_a_keyword_search() -> None:
