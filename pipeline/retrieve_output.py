@@ -197,9 +197,11 @@ def retrieval_json(results: tuple[ObjectRetrieval, ...], models: tuple[RepoModel
                      **r.best.to_json(models[r.best.model]),
                      "runner_up": None if r.runner_up is None else {
                          "model": r.runner_up.file, "kind": r.runner_up.kind,
-                         "variant": r.runner_up.variant, "score": round(r.runner_up.score, 6)},
+                         "variant": r.runner_up.variant, "score": round(r.runner_up.score, 6),
+                         "kind_score": round(r.runner_up.kind_score, 6)},
                      "per_kind": {k: {"model": c.file, "variant": c.variant,
-                                      "score": round(c.score, 6)}
+                                      "score": round(c.score, 6),
+                                      "kind_score": round(c.kind_score, 6)}
                                   for k, c in sorted(r.per_kind.items())}})
     return json.dumps({"format": "unseen.retrieval", "version": 1, **header, "objects": objs},
                       indent=1) + "\n"
@@ -209,17 +211,22 @@ def report_markdown(results: tuple[ObjectRetrieval, ...], header: dict, notes: l
     lines = ["# unseen retrieve", ""]
     lines += [f"- {k}: `{v}`" if k == "command" else f"- {k}: {v}" for k, v in header.items()]
     lines += ["", "Score = share of the model's surface samples inside the (grown) cuboids + "
-              "share of the cuboids' volume samples inside the model's solid (0-2).", "",
-              "| object | cuboids | points | model | kind | variant | score | model covered | "
-              "structure covered | ICP fitness | runner-up |", "|" + "---|" * 11]
+              "share of the cuboids' volume samples inside the model's solid (0-2); it picks "
+              "the model within a kind.  Kind score = score - stretch_cost x stretch, stretch "
+              "= ln(max / min) of the factors scaling the model's axes into the object's box; "
+              "it picks the kind (and orders the runner-up).", "",
+              "| object | cuboids | points | model | kind | variant | score | stretch | "
+              "kind score | model covered | structure covered | ICP fitness | runner-up "
+              "(kind score) |", "|" + "---|" * 13]
     for r in results:
         b = r.best
         icp = "-" if b.icp is None else f"{b.icp['fitness']:.2f}" + \
             ("" if b.icp["applied"] else " (not kept)")
         ru = "-" if r.runner_up is None else \
-            f"{r.runner_up.kind}:{r.runner_up.variant} {r.runner_up.score:.3f}"
+            f"{r.runner_up.kind}:{r.runner_up.variant} {r.runner_up.kind_score:.3f}"
         lines.append(f"| {r.object} | {len(r.cuboids)} | {r.n_points} | {b.file} | {b.kind} | "
-                     f"{b.variant} | {b.score:.3f} | {b.a:.3f} | {b.b:.3f} | {icp} | {ru} |")
+                     f"{b.variant} | {b.score:.3f} | {b.stretch:.3f} | {b.kind_score:.3f} | "
+                     f"{b.a:.3f} | {b.b:.3f} | {icp} | {ru} |")
     if notes:
         lines += ["", "Notes: " + "; ".join(notes)]
     return "\n".join(lines) + "\n"

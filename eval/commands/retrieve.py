@@ -156,6 +156,7 @@ def run(args: argparse.Namespace) -> int:
         if len(sys.argv) > 1 and sys.argv[1] == "retrieve" else f"unseen retrieve {args.result}"
     header = {"command": command, "result": str(path), "structure": args.structure,
               "models": str(args.models), "n_models": len(models), "fit": args.fit,
+              "stretch_cost": cfg.stretch_cost,
               "icp": (not args.no_icp) and args.scan is not None, "seed": args.seed,
               "kinds": list(kinds) if kinds else "all", "min_cuboids": args.min_cuboids}
     inputs = [args.result, args.models] + ([args.scan] if args.scan is not None else [])

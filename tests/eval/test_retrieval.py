@@ -94,8 +94,10 @@ def test_retrieve_end_to_end(models: Path, furniture, tmp_path: Path, capsys) ->
     out3 = tmp_path / "out3"
     assert main(["retrieve", str(res), "--models", str(models), "--out", str(out3),
                  "--stretch-cost", "0"]) == 0
-    (obj3,) = [o for o in json.loads((out3 / "retrieval.json").read_text())["objects"]
-               if o["object"] == "chair0"]
+    data3 = json.loads((out3 / "retrieval.json").read_text())
+    assert data["stretch_cost"] == 0.5 and data3["stretch_cost"] == 0.0
+    assert "| stretch | kind score |" in (out3 / "report.md").read_text()
+    (obj3,) = [o for o in data3["objects"] if o["object"] == "chair0"]
     assert obj3["kind_score"] == obj3["score"] and obj["kind_score"] == pytest.approx(
         obj["score"] - 0.5 * obj["stretch"], abs=1e-5)
 
