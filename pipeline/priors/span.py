@@ -7,13 +7,11 @@ depth of its top).  A single view sees such a part only up to where something in
 hid it, so its fit stops short of the object.  An upright board or panel (its thinnest
 extent at most its next one over ``panel_ratio``; a leg or a block is none) whose end
 along a horizontal axis other than its thickness stops more than ``min_reach`` short of
-how far the other parts of its object that bound it reach in that direction (those
-beside it, and those above or below it with no other part in between: a table's legs
-under its top, not a monitor's screen over its foot, whose neck stands between them)
-grows to that reach, or up to the near face of one of those parts on the way (it meets
-that part: a board stops at its side panel), whichever is furthest without entering
-a part of its object or sliding in under one it was not under (a side panel stands on
-the floor, not on the bottom board), through space no view saw empty
+how far the other parts of its object reach in that direction grows to that reach, or
+up to the near face of one of those parts on the way (it meets that part: a board stops
+at its side panel), whichever is furthest without entering a part of its object or
+sliding in under one it was not under (a side panel stands on the floor, not on the
+bottom board), through space no view saw empty
 (:data:`pipeline.evidence.FREE_FRACTION_MAX`) and at least ``hidden_min`` of it hidden
 from every view (something nearer in front of it, or no reading there).  A part whose
 end a view saw keeps it: the space beyond it seen empty, or seen at all (a monitor's
@@ -52,39 +50,11 @@ class Params:
     hidden_min: float = 0.5
 
 
-def _over(a, b) -> bool:
-    """Whether the footprints of ``a`` and ``b`` overlap along both of ``a``'s horizontal
-    axes."""
-    return all(overlap_along(a, b, a.rotation[:, ax]) > 0 for ax in horizontal_axes(a))
-
-
-def reaching(arr, k: int, mates: list[int]) -> list[int]:
-    """The parts of ``mates`` whose reach says how far part ``k`` runs: those beside it
-    (their heights overlap) and those above or below it with no other part of ``mates``
-    between the two (over both); not a monitor's screen for its foot, whose neck stands
-    between them."""
-    c = arr.cuboids[k]
-    lo, hi = z_range(c)
-    out = []
-    for j in mates:
-        q = arr.cuboids[j]
-        q_lo, q_hi = z_range(q)
-        if q_hi >= lo and q_lo <= hi:
-            out.append(j)
-            continue
-        g_lo, g_hi = (hi, q_lo) if q_lo > hi else (q_hi, lo)
-        if not any(z_range(arr.cuboids[r])[0] < g_hi and z_range(arr.cuboids[r])[1] > g_lo
-                   and _over(arr.cuboids[r], c) and _over(arr.cuboids[r], q)
-                   for r in mates if r != j):
-            out.append(j)
-    return out
-
-
 def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
     """``(axis, side, length)`` growths of part ``k`` across its object: along each of its
-    horizontal axes but its thickness, to the reach of the parts of its object that
-    bound it (:func:`reaching`) or to the near face of one of them on the way; ``[]`` when
-    the part is no board or panel or its object reaches no further."""
+    horizontal axes but its thickness, to its object's reach or to the near face of a part
+    of its object on the way; ``[]`` when the part is no board or panel or its object
+    reaches no further."""
     c = arr.cuboids[k]
     if c.object is None or not is_upright(c):
         return []
@@ -95,16 +65,13 @@ def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
     if c.size[thin] > float(np.sort(c.size)[1]) / p.panel_ratio:
         return []
     sub = arr.with_(cuboids=tuple(arr.cuboids[j] for j in mates))
-    bounding = [arr.cuboids[j] for j in reaching(arr, k, mates)]
-    if not bounding:
-        return []
     out = []
     for ax, side in [(a, s) for a in horizontal_axes(c) if a != thin for s in (0, 1)]:
         u = c.rotation[:, ax] * (1.0 if side else -1.0)
         w = c.rotation[:, next(a for a in horizontal_axes(c) if a != ax)]
         face = float(c.center @ u + c.size[ax] / 2)
         ends = [(float(q_lo) - face, float(q_hi) - face)
-                for q_lo, q_hi in (extent_along(q, u) for q in bounding)]
+                for q_lo, q_hi in (extent_along(q, u) for q in sub.cuboids)]
         reach = max(far for _near, far in ends)
         # as far as its object reaches, or up to the near face of a part of it on the way
         for length in sorted({reach, *(near for near, _far in ends if near < reach)},
