@@ -105,25 +105,33 @@ def _readings(points: np.ndarray, view, margin: float):
     return inside, z, d, 3 * depth_noise(d) + margin
 
 
+def _visible(points: np.ndarray, views, margin: float, hidden: bool
+             ) -> tuple[np.ndarray, np.ndarray | None]:
+    """:func:`visible_masks`, the second mask only when ``hidden`` (the seen-empty test
+    on the search's path needs the first alone)."""
+    seen = np.zeros(len(points), bool)
+    unseen = np.ones(len(points), bool) if hidden else None
+    for view in views:
+        inside, z, d, tol = _readings(points, view, margin)
+        seen |= inside & (d > 0) & (z < d - tol)
+        if hidden:
+            unseen &= ~inside | (d <= 0) | (d < z - tol)
+    return seen, unseen
+
+
 def visible_masks(points: np.ndarray, views, margin: float = 0.0
                   ) -> tuple[np.ndarray, np.ndarray]:
     """Per point of ``points``, from one projection into each view: whether some view saw
     it as empty (clearly in front of its depth), and whether every view was kept from
     seeing it (a reading clearly nearer than it, no reading at its pixel, or outside the
     picture)."""
-    seen = np.zeros(len(points), bool)
-    hidden = np.ones(len(points), bool)
-    for view in views:
-        inside, z, d, tol = _readings(points, view, margin)
-        seen |= inside & (d > 0) & (z < d - tol)
-        hidden &= ~inside | (d <= 0) | (d < z - tol)
-    return seen, hidden
+    return _visible(points, views, margin, hidden=True)
 
 
 def visible_free_mask(points: np.ndarray, views, margin: float = 0.0) -> np.ndarray:
     """Per point of ``points``: whether some view saw it as empty (clearly in front of
     its depth; :func:`visible_masks`)."""
-    return visible_masks(points, views, margin)[0]
+    return _visible(points, views, margin, hidden=False)[0]
 
 
 #: Added volume lies, taken as a whole, in front of what the sensor saw when the median
@@ -266,4 +274,5 @@ class Evidence:
 
 
 __all__ = ["Evidence", "DepthView", "depth_noise", "slab_samples", "visible_free_fraction",
-           "visible_free_mask", "visible_masks", "seen_in_front", "observed_points", "FREE_FRACTION_MAX"]
+           "visible_free_mask", "visible_masks", "seen_in_front", "observed_points",
+           "FREE_FRACTION_MAX"]

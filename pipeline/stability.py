@@ -660,5 +660,5 @@ def _unscaled(system: EquilibriumSystem) -> EquilibriumSystem:
 
 
 __all__ = ["check_stability", "load_carrying", "LOAD_SHARE_MIN", "StabilityResult",
-           "BodyResidual", "build_bodies", "build_system", "solve_energy", "EquilibriumSystem", "contact_force_newtons", "is_support_id",
-           "glue_reasons"]
+           "BodyResidual", "build_bodies", "build_system", "solve_energy", "EquilibriumSystem",
+           "contact_force_newtons", "is_support_id", "glue_reasons"]

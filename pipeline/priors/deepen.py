@@ -144,12 +144,18 @@ def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
     return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
 
 
+def across(c, axis: int) -> float:
+    """The width of the face of ``c`` across its horizontal ``axis``: its largest other
+    horizontal extent (0 when it has none)."""
+    return max((float(c.size[a]) for a in horizontal_axes(c) if a != axis), default=0.0)
+
+
 def is_panel(arr: Arrangement, c, axis: int, p: Params) -> bool:
     """Whether ``c``, thin along its horizontal ``axis``, is a panel of furniture: a part
     of an object of several parts whose face across ``axis`` is as wide as half its
     height or ``big_face``, and as tall as half its width (a desk's side, a sofa's arm,
     a chair's back; not a leg or a post)."""
-    width = max((float(c.size[a]) for a in horizontal_axes(c) if a != axis), default=0.0)
+    width = across(c, axis)
     height = float(c.size[up_axis(c)])
     return (not single_part(arr, c)
             and (width >= p.thin_fraction * height or width >= p.big_face)
@@ -165,20 +171,29 @@ def horizontal_look(c, eye: np.ndarray) -> np.ndarray | None:
     return look / n if n >= 1e-9 else None
 
 
+def meets_face(c, axis: int, look: np.ndarray, deg: float) -> bool:
+    """Whether the unit horizontal view ``look`` runs within ``deg`` of ``c``'s ``axis``:
+    it looks at the face across ``axis``."""
+    return abs(float(c.rotation[:, axis] @ look)) >= np.cos(np.radians(deg))
+
+
 def seen_face_on(c, axis: int, eye: np.ndarray, deg: float) -> bool:
     """Whether the horizontal view from ``eye`` to ``c`` runs within ``deg`` of its
     ``axis``: the camera looks at the face across ``axis``."""
     look = horizontal_look(c, eye)
-    return look is not None and abs(float(c.rotation[:, axis] @ look)) >= np.cos(np.radians(deg))
+    return look is not None and meets_face(c, axis, look, deg)
 
 
 def face_on_panel_axes(arr: Arrangement, c, eye: np.ndarray, p: Params) -> set[int]:
     """The horizontal axes of ``c`` across which it is a panel (:func:`is_panel`), thin
-    along them, that the camera sees face-on (within ``p.face_on_part_deg``)."""
-    h = horizontal_axes(c)
-    return {a for a in h
-            if c.size[a] < p.thin_fraction * max([float(c.size[b]) for b in h if b != a] + [1e-9])
-            and is_panel(arr, c, a, p) and seen_face_on(c, a, eye, p.face_on_part_deg)}
+    along them, whose face the horizontal view from ``eye`` meets within
+    ``p.face_on_part_deg``."""
+    look = horizontal_look(c, eye)
+    if look is None:
+        return set()
+    return {a for a in horizontal_axes(c)
+            if c.size[a] < p.thin_fraction * across(c, a) and is_panel(arr, c, a, p)
+            and meets_face(c, a, look, p.face_on_part_deg)}
 
 
 def away_from(c, axis: int, eye: np.ndarray) -> np.ndarray:
@@ -354,7 +369,7 @@ def _face_on(arr, evidence, p: Params):
         height = float(c.size[up_axis(c)])
         for axis in horizontal:
             along = float(c.rotation[:, axis] @ look)
-            width = max((float(c.size[a]) for a in horizontal if a != axis), default=0.0)
+            width = across(c, axis)
             if c.size[axis] >= p.thin_fraction * width:
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera

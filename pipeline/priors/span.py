@@ -17,8 +17,8 @@ from every view (something nearer in front of it, or no reading there).  A part 
 end a view saw keeps it: the space beyond it seen empty, or seen at all (a monitor's
 foot lying on a desk, the desk top in plain view beside it: a slab two centimetres above
 a seen surface is never "seen empty", the depth noise is wider).  The gate rejects a
-growth into another object.  It runs after ``join_parts``: a leg seen only at its foot is a flat stub, and no board,
-until it is reached up to its seat.
+growth into another object.  It runs after ``join_parts``: a leg seen only at its foot
+is a flat stub, and no board, until it is reached up to its seat.
 """
 
 from __future__ import annotations
