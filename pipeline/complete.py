@@ -21,14 +21,18 @@ Steps (:func:`complete`):
    eigenvector ``x`` of ``M`` (power iteration) maximises ``x^T M x`` over ``|x| = 1``;
    it is discretised greedily: accept the largest ``x_a``, drop every assignment that
    shares a part with it, repeat while ``x_a`` is above a fraction of the largest.
-2. **Ground-edge alignment** (:func:`edge_alignments`).  Every horizontal footprint edge
-   of a matched template cuboid against every footprint edge (both ways round) of its
-   partial cuboid gives a rigid transform: the rotation about z turning one edge's
+2. **Ground-edge alignment** (:func:`edge_alignments`, :func:`align`).  Every horizontal
+   footprint edge of a template cuboid against every footprint edge (both ways round) of
+   a partial cuboid gives a rigid transform: the rotation about z turning one edge's
    direction into the other's, the translation carrying one projected midpoint onto the
    other (the least-squares fit of the two pairs of projected end points), and the
    difference of the floor heights along z (of the objects' lowest points when one
-   does not stand on its floor, :func:`level_offset`).  The one whose partial points lie closest
-   to the moved template points (mean distance, truncated) is kept.
+   does not stand on its floor, :func:`level_offset`).  The paper pairs only the
+   matched cuboids; here every pair of cuboids is tried (``edge_pairs="all"``), as a
+   partial view often shows too few parts for the matching to be right.  Kept: of the
+   transforms whose partial points lie closest to the moved template points (mean
+   distance, truncated), the one whose transferred template (steps 4 and 5 in that
+   pose) explains the partial scan best, by the score that chooses the transfer.
 3. **ICP** (Open3D point-to-plane): the partial points registered to the template
    points from that start, projected back to an upright transform (a yaw, a horizontal
    shift, the floor offset): both objects stand on their floors.
@@ -67,14 +71,24 @@ ACCEPT_REL = 0.05
 TEMPLATE_VOXEL = 0.005
 #: An object whose lowest part is this close to its floor stands on it (metres).
 ON_FLOOR = 0.05
-#: Most partial points used to score a candidate alignment.
+#: Most partial points used to score a candidate alignment ...
 SCORE_POINTS = 3000
+#: ... and most template points carried over to judge it (:func:`align`).
+ALIGN_TEMPLATE_POINTS = 5000
+#: Every candidate alignment is first ranked on about this many partial points; the
+#: best :data:`KEEP_ALIGNMENTS` of them are judged by their transfers.
+COARSE_POINTS = 300
+KEEP_ALIGNMENTS = 16
+#: Candidate poses closer than this in yaw (radians) and shift (metres) are one pose.
+SAME_YAW = 1e-3
+SAME_SHIFT = 1e-3
 #: After alignment, a pair of parts costs the distance of their centres in their objects'
 #: boxes scaled to unit cubes plus this times the distance of their log dimensions ...
 LOG_WEIGHT = 0.15
 #: ... and pairs costing more than this are not matched.
 REMATCH_GATE = 0.5
 TRANSFERS = ("auto", "parts", "rigid")
+EDGE_PAIRS = ("all", "matched")
 
 
 @dataclass(frozen=True)
@@ -100,6 +114,9 @@ class CompleteConfig:
         (:func:`transfer_score`).
     carve : bool
         Remove transferred points the partial scan saw through.
+    edge_pairs : {"all", "matched"}
+        Which pairs of parts give candidate alignments (:func:`align`): every pair, or
+        only those of the spectral matching (the paper).
     """
 
     height_tol: float = 0.05
@@ -111,6 +128,7 @@ class CompleteConfig:
     icp_iterations: int = 60
     transfer: str = "auto"
     carve: bool = True
+    edge_pairs: str = "all"
 
     def __post_init__(self) -> None:
         for name in ("height_tol", "length_tol", "sigma_log", "sigma_rel", "score_cap",
@@ -122,6 +140,8 @@ class CompleteConfig:
             raise ValueError(f"icp_iterations: must be >= 0, got {self.icp_iterations}")
         if self.transfer not in TRANSFERS:
             raise ValueError(f"transfer: must be one of {TRANSFERS}, got {self.transfer!r}")
+        if self.edge_pairs not in EDGE_PAIRS:
+            raise ValueError(f"edge_pairs: must be one of {EDGE_PAIRS}, got {self.edge_pairs!r}")
 
 
 # ------------------------------------------------------------------------------ parts
@@ -437,33 +457,81 @@ def icp_refine(T0: np.ndarray, template_points: np.ndarray, partial_points: np.n
 
 def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
           partial_points: np.ndarray, dz: float, config: CompleteConfig | None = None,
-          rng: np.random.Generator | None = None) -> tuple[np.ndarray, dict]:
-    """The rigid transform template -> partial: best ground-edge alignment, then ICP.
+          rng: np.random.Generator | None = None, views=None) -> tuple[np.ndarray, dict]:
+    """The rigid transform template -> partial: the best ground-edge alignment, then ICP.
 
-    Returns ``(T (4, 4), info)``; ``info`` holds the number of candidate alignments, the
-    best one's score (metres), the pair of parts it came from and ICP's figures."""
+    Candidates (:func:`edge_alignments`): with ``config.edge_pairs == "all"`` (the
+    default) from every template part against every partial part, so a wrong or empty
+    spectral matching (a partial view that shows two of four parts, a symmetric object)
+    still leaves the right pair among them; with ``"matched"`` from ``matching``'s pairs
+    only (the paper).  All are ranked by the mean distance, truncated at ``score_cap``,
+    from about :data:`COARSE_POINTS` partial points to the moved template points; the
+    :data:`KEEP_ALIGNMENTS` best are then judged as :func:`complete` judges its result:
+    the parts matched anew in that pose (:func:`refine_matching`), a sample of the
+    template carried over by each transfer, scored by :func:`transfer_score` (distance
+    from the partial points, plus the share the partial scan's ``views`` saw through).
+    A rigid pose alone would prefer a template turned so that its other proportions
+    stay out of the seen-empty space over the pose whose parts land on the right boxes.
+
+    ``views``: anything with ``free_mask(points) -> (n,) bool`` (an
+    :class:`pipeline.evidence.Evidence`), or None.
+
+    Returns ``(T (4, 4), info)``; ``info`` holds the number of distinct candidate poses,
+    the best one's score (metres), its part pair and ICP's figures."""
+    from scipy.spatial import cKDTree
+
     cfg = config or CompleteConfig()
     rng = rng or np.random.default_rng(0)
     sample = partial_points
     if len(sample) > SCORE_POINTS:
         sample = sample[np.sort(rng.choice(len(sample), SCORE_POINTS, replace=False))]
-    Ts = edge_alignments(a, b, matching.pairs, dz)
-    if not len(Ts):  # nothing matched: centroids on each other, no turn
+    tsample = template_points
+    if len(tsample) > ALIGN_TEMPLATE_POINTS:
+        tsample = tsample[np.sort(rng.choice(len(tsample), ALIGN_TEMPLATE_POINTS,
+                                             replace=False))]
+    pairs = (list(matching.pairs) if cfg.edge_pairs == "matched"
+             else [(i, j) for i in range(len(a)) for j in range(len(b))])
+    Ts = edge_alignments(a, b, pairs, dz)
+    source = np.repeat(np.arange(len(pairs)), 32)
+    if not len(Ts):  # no pairs: centroids on each other, no turn
         t = partial_points.mean(0) - template_points.mean(0)
         Ts = upright_transform(0.0, [t[0], t[1], dz])[None]
-    from scipy.spatial import cKDTree
+        source = np.array([-1])
+    # one of each pose (a box's edges give the same pose several times over), so the
+    # kept candidates are different poses
+    yaw = np.mod(np.arctan2(Ts[:, 1, 0], Ts[:, 0, 0]), 2 * np.pi)
+    key = np.round(np.column_stack([yaw / SAME_YAW, Ts[:, :3, 3] / SAME_SHIFT])).astype(np.int64)
+    key[:, 0] %= int(round(2 * np.pi / SAME_YAW))
+    _, first = np.unique(key, axis=0, return_index=True)
+    first = np.sort(first)
+    Ts, source = Ts[first], source[first]
+    n_candidates = len(Ts)
+    if len(Ts) > KEEP_ALIGNMENTS:
+        tree = cKDTree(template_points)
+        coarse = score_alignments(Ts, template_points,
+                                  sample[::max(1, len(sample) // COARSE_POINTS)],
+                                  cfg.score_cap, tree)
+        keep = np.sort(np.argsort(coarse, kind="stable")[:KEEP_ALIGNMENTS])
+        Ts, source = Ts[keep], source[keep]
 
-    tree = cKDTree(template_points)
-    scores = score_alignments(Ts, template_points, sample, cfg.score_cap, tree)
+    def judged(T: np.ndarray) -> float:
+        m = refine_matching(a, b, T, cfg, matching)
+        best = np.inf
+        for mode in ("parts", "rigid"):
+            moved = transfer(tsample, a, b, m, T, mode)
+            free = views.free_mask(moved) if views is not None else np.zeros(len(moved), bool)
+            best = min(best, transfer_score(moved, free, sample, cfg.score_cap))
+        return best
+
+    scores = np.array([judged(T) for T in Ts])
     best = int(np.argmin(scores))
     T_icp, icp = icp_refine(Ts[best], template_points, partial_points, cfg)
-    icp_score = float(score_alignments(T_icp[None], template_points, sample, cfg.score_cap,
-                                       tree)[0])
-    # ICP is kept unless it moved the points away from the template (by the same score)
+    icp_score = judged(T_icp)
+    # ICP is kept unless it made the transferred template explain the scan worse
     icp["kept"] = bool(icp_score <= scores[best] + 1e-9)
     T = T_icp if icp["kept"] else Ts[best]
-    info = {"candidates": int(len(Ts)), "edge_score": float(scores[best]),
-            "edge_pair": int(best // 32) if matching.pairs else None,
+    info = {"candidates": int(n_candidates), "edge_score": float(scores[best]),
+            "edge_pair": list(pairs[source[best]]) if source[best] >= 0 else None,
             "edge_transform": Ts[best].tolist(), "icp": icp,
             "score": min(icp_score, float(scores[best]))}
     return T, info
@@ -821,10 +889,10 @@ def complete(partial, template, config: CompleteConfig | None = None, *,
     spectral = spectral_match(a, b, cfg)
     dz = level_offset(a, b, floor_height(template.arrangement),
                       floor_height(partial.arrangement))
-    T, info = align(a, b, spectral, tp, pp, dz, cfg, rng)
+    views = partial.evidence.scaled_to(partial.arrangement) if partial.evidence else None
+    T, info = align(a, b, spectral, tp, pp, dz, cfg, rng, views=views)
     matching = refine_matching(a, b, T, cfg, spectral)
     modes = ("parts", "rigid") if cfg.transfer == "auto" else (cfg.transfer,)
-    views = partial.evidence.scaled_to(partial.arrangement) if partial.evidence else None
     scored = []
     for mode in modes:
         moved = transfer(tp, a, b, matching, T, mode)

@@ -65,6 +65,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "whole template moved rigidly (the paper); auto (default): both, "
                         "keeping the one nearer the partial points and less in space the "
                         "partial scan saw empty")
+    p.add_argument("--edge-pairs", default="all", choices=["all", "matched"],
+                   help="which pairs of parts give candidate alignments: all (default; each "
+                        "judged by its transfer) or only the spectrally matched ones (the "
+                        "paper)")
     p.add_argument("--no-carve", action="store_true",
                    help="keep carried points that the partial scan's depth saw through")
     p.add_argument("--height-tol", type=float, default=0.05,
@@ -97,7 +101,7 @@ def _config(args: argparse.Namespace):
         raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
     return CompleteConfig(height_tol=args.height_tol, length_tol=args.length_tol,
                           icp_distance=args.icp_distance, transfer=args.transfer,
-                          carve=not args.no_carve)
+                          carve=not args.no_carve, edge_pairs=args.edge_pairs)
 
 
 def _run_config(args: argparse.Namespace):
@@ -224,7 +228,7 @@ def transform_json(c, config, extra: dict | None = None) -> dict:
                        "template": int((c.source == 1).sum())},
             "config": {"height_tol": config.height_tol, "length_tol": config.length_tol,
                        "icp_distance": config.icp_distance, "carve": config.carve,
-                       "transfer": config.transfer},
+                       "transfer": config.transfer, "edge_pairs": config.edge_pairs},
             **(extra or {})}
 
 
@@ -237,8 +241,9 @@ def report_markdown(c, record: dict, command: str) -> str:
              f"{len(c.template_parts)} template parts and {len(c.partial_parts)} partial parts "
              f"({record['candidates']} candidate pairs, {record['pruned']} pruned by "
              f"height/length); once aligned: {len(c.matching.pairs)} pairs",
-             f"- ground-edge alignment: best of {c.alignment.get('candidates', 0)} candidates, "
-             f"mean truncated distance {c.alignment.get('edge_score', float('nan')):.4f} m",
+             f"- ground-edge alignment: best of {c.alignment.get('candidates', 0)} candidate "
+             f"poses (parts {c.alignment.get('edge_pair')}), transfer score "
+             f"{c.alignment.get('edge_score', float('nan')):.4f} m",
              f"- ICP: fitness {icp.get('fitness_before', 0):.3f} -> {icp.get('fitness', 0):.3f}, "
              f"RMSE {icp.get('rmse_before', 0):.4f} -> {icp.get('rmse', 0):.4f} m"
              f"{'' if icp.get('kept', True) else ' (not kept: it moved away)'}",

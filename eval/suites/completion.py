@@ -293,7 +293,7 @@ def run(args: argparse.Namespace) -> int:
             f"another seed (+{TEMPLATE_OFFSET}) of the same family.  Matching accuracy: "
             f"matched pairs whose true parts hold the same place in their objects "
             f"(normalised centres within {ROLE_TOL}, up to a half turn), pooled over pairs; "
-            "'spectral': the matching the alignment came from, 'aligned': the matching "
+            "'spectral': the spectral matching (the alignment tries every pair of parts), 'aligned': the matching "
             "redone once aligned, which the transfer follows.  ICP fitness: share of "
             "partial points within 5 cm of the aligned template.")
     fail = failure_note(summary)

@@ -26,6 +26,15 @@ def test_bad_input_exit_2_one_line(tmp_path, capsys, argv, message):
     assert not (tmp_path / "o").exists()
 
 
+def test_unknown_edge_pairs_exit_2_one_line(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["complete", str(tmp_path), "--template", str(tmp_path), "--out",
+              str(tmp_path / "o"), "--edge-pairs", "some"])
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--edge-pairs" in err and "'matched'" in err
+    assert err.count("\n") == 1 and not (tmp_path / "o").exists()
+
+
 def test_help_has_an_example(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["complete", "--help"])
@@ -78,6 +87,7 @@ def test_end_to_end_coverage_improves(chair_pair, tmp_path, capsys):
     T = np.array(rec["T_partial_template"])
     assert T.shape == (4, 4) and np.allclose(T[:3, :3].T @ T[:3, :3], np.eye(3))
     assert rec["matching"] and rec["alignment"]["icp"]["fitness"] > 0.5
+    assert rec["config"]["edge_pairs"] == "all" and len(rec["alignment"]["edge_pair"]) == 2
     pts, source = read_ply(out / "completed.ply")
     assert set(np.unique(source)) == {0, 1}
     truth = partial.truth.arrangement

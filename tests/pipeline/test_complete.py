@@ -123,9 +123,54 @@ def test_ground_edge_alignment_recovers_a_rigid_transform_exactly():
     scores = score_alignments(Ts, tp, pp, cap=0.1)
     best = Ts[int(np.argmin(scores))]
     assert np.abs(best - T_true).max() < 1e-9
-    T, info = align(a, b, m, tp, pp, 0.25, CompleteConfig(icp_iterations=0))
+    for pairs in ("matched", "all"):
+        T, info = align(a, b, m, tp, pp, 0.25, CompleteConfig(icp_iterations=0, edge_pairs=pairs))
+        assert np.abs(T - T_true).max() < 1e-9
+        assert 0 < info["candidates"] <= (len(Ts) if pairs == "matched" else 32 * len(PARTS) ** 2)
+
+
+def test_every_pair_of_parts_aligns_without_a_matching():
+    """No spectral pair (a partial view the matching cannot read): the paper's candidates
+    are gone and the centroids are put on each other unturned; candidates from every pair
+    of parts still hold the exact pose."""
+    yaw, shift = 2.3, (1.7, -0.6, 0.0)
+    T_true = upright_transform(yaw, shift)
+    tc, pc = object_cuboids(), object_cuboids(yaw=yaw, shift=shift)
+    a, b = parts_of(tc), parts_of(pc)
+    tp, pp = surface_points(tc), surface_points(pc)
+    none = Matching((), (), 0, 0)
+    T, info = align(a, b, none, tp, pp, 0.0, CompleteConfig(icp_iterations=0))
     assert np.abs(T - T_true).max() < 1e-9
-    assert info["candidates"] == len(Ts) and info["edge_score"] < 1e-9
+    T, _ = align(a, b, none, tp, pp, 0.0, CompleteConfig(icp_iterations=0, edge_pairs="matched"))
+    assert np.allclose(T[:3, :3], np.eye(3)) and np.abs(T - T_true).max() > 1.0
+
+
+class SeenEmpty:
+    """Depth views reduced to what :func:`align` asks: space seen empty, one box."""
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = np.asarray(lo), np.asarray(hi)
+
+    def free_mask(self, points):
+        return np.all((points >= self.lo) & (points <= self.hi), axis=1)
+
+
+def test_space_seen_empty_turns_a_template_that_fits_the_seen_points_both_ways():
+    """Only the desk top's upper face is seen: the template fits it turned by 0 and by a
+    half turn alike.  Where the scan saw empty space under one end of the top, the pose
+    that puts the drawer block there loses, whichever end it is."""
+    tc = object_cuboids()
+    a = b = parts_of(tc)
+    tp = surface_points(tc)
+    top = tc[0]
+    pp = surface_points([top])
+    pp = pp[pp[:, 2] > top.center[2] + top.size[2] / 2 - 1e-9]  # the upper face only
+    m = Matching(((0, 0),), (1.0,), 1, 0)
+    cfg = CompleteConfig(icp_iterations=0)
+    for empty_x, yaw in (((-0.65, -0.3), 0.0), ((0.3, 0.65), np.pi)):
+        views = SeenEmpty((empty_x[0], -0.3, 0.05), (empty_x[1], 0.3, 0.7))
+        T, _ = align(a, b, m, tp, pp, 0.0, cfg, views=views)
+        assert np.abs(T - upright_transform(yaw, (0.0, 0.0, 0.0))).max() < 1e-9
 
 
 def test_icp_improves_a_perturbed_alignment():
