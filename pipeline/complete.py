@@ -21,18 +21,15 @@ Steps (:func:`complete`):
    eigenvector ``x`` of ``M`` (power iteration) maximises ``x^T M x`` over ``|x| = 1``;
    it is discretised greedily: accept the largest ``x_a``, drop every assignment that
    shares a part with it, repeat while ``x_a`` is above a fraction of the largest.
-2. **Ground-edge alignment** (:func:`edge_alignments`, :func:`align`).  Every horizontal
-   footprint edge of a template cuboid against every footprint edge (both ways round) of
-   a partial cuboid gives a rigid transform: the rotation about z turning one edge's
-   direction into the other's, the translation carrying one projected midpoint onto the
-   other (the least-squares fit of the two pairs of projected end points), and the
-   difference of the floor heights along z (of the objects' lowest points when one
-   does not stand on its floor, :func:`level_offset`).  The paper pairs only the
-   matched cuboids; here every pair of cuboids is tried (``edge_pairs="all"``), as a
-   partial view often shows too few parts for the matching to be right.  Kept: of the
-   transforms whose partial points lie closest to the moved template points (mean
-   distance, truncated), the one whose transferred template (steps 4 and 5 in that
-   pose) explains the partial scan best, by the score that chooses the transfer.
+2. **Ground-edge alignment** (:func:`edge_alignments`, :func:`align`).  Each horizontal
+   footprint edge of a template cuboid against each footprint edge (both ways round) of a
+   partial cuboid gives a rigid transform: the rotation about z turning one edge into
+   the other, the translation carrying one projected midpoint onto the other, and the
+   floor offset along z (of the objects' lowest points when one does not stand on its
+   floor, :func:`level_offset`).  The paper pairs the matched cuboids only; here every
+   pair is tried, as one view often shows too few parts for the matching to be right.
+   Kept: of the poses nearest the partial points, the one whose transfer (steps 4-5 in
+   that pose) explains the partial scan best, by the score that chooses the transfer.
 3. **ICP** (Open3D point-to-plane): the partial points registered to the template
    points from that start, projected back to an upright transform (a yaw, a horizontal
    shift, the floor offset): both objects stand on their floors.
@@ -75,13 +72,11 @@ ON_FLOOR = 0.05
 SCORE_POINTS = 3000
 #: ... and most template points carried over to judge it (:func:`align`).
 ALIGN_TEMPLATE_POINTS = 5000
-#: Every candidate alignment is first ranked on about this many partial points; the
-#: best :data:`KEEP_ALIGNMENTS` of them are judged by their transfers.
-COARSE_POINTS = 300
-KEEP_ALIGNMENTS = 16
+#: Candidate alignments are ranked on about this many partial points; the best
+#: :data:`KEEP_ALIGNMENTS` are judged by their transfers.
+COARSE_POINTS, KEEP_ALIGNMENTS = 300, 16
 #: Candidate poses closer than this in yaw (radians) and shift (metres) are one pose.
-SAME_YAW = 1e-3
-SAME_SHIFT = 1e-3
+SAME_YAW, SAME_SHIFT = 1e-3, 1e-3
 #: After alignment, a pair of parts costs the distance of their centres in their objects'
 #: boxes scaled to unit cubes plus this times the distance of their log dimensions ...
 LOG_WEIGHT = 0.15
@@ -115,8 +110,7 @@ class CompleteConfig:
     carve : bool
         Remove transferred points the partial scan saw through.
     edge_pairs : {"all", "matched"}
-        Which pairs of parts give candidate alignments (:func:`align`): every pair, or
-        only those of the spectral matching (the paper).
+        Candidate alignments from every pair of parts, or the matched ones (the paper).
     """
 
     height_tol: float = 0.05
@@ -355,6 +349,13 @@ def upright_transform(yaw: float, t: np.ndarray) -> np.ndarray:
     return T
 
 
+def subsample(points: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``points`` when there are at most ``n``, else ``n`` of them drawn by ``rng`` (in order)."""
+    if len(points) <= n:
+        return points
+    return points[np.sort(rng.choice(len(points), n, replace=False))]
+
+
 def edge_alignments(a: Parts, b: Parts, pairs, dz: float) -> np.ndarray:
     """Every candidate transform (template -> partial) from matched ground edges.
 
@@ -460,21 +461,17 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
           rng: np.random.Generator | None = None, views=None) -> tuple[np.ndarray, dict]:
     """The rigid transform template -> partial: the best ground-edge alignment, then ICP.
 
-    Candidates (:func:`edge_alignments`): with ``config.edge_pairs == "all"`` (the
-    default) from every template part against every partial part, so a wrong or empty
-    spectral matching (a partial view that shows two of four parts, a symmetric object)
-    still leaves the right pair among them; with ``"matched"`` from ``matching``'s pairs
-    only (the paper).  All are ranked by the mean distance, truncated at ``score_cap``,
-    from about :data:`COARSE_POINTS` partial points to the moved template points; the
-    :data:`KEEP_ALIGNMENTS` best are then judged as :func:`complete` judges its result:
-    the parts matched anew in that pose (:func:`refine_matching`), a sample of the
-    template carried over by each transfer, scored by :func:`transfer_score` (distance
-    from the partial points, plus the share the partial scan's ``views`` saw through).
-    A rigid pose alone would prefer a template turned so that its other proportions
-    stay out of the seen-empty space over the pose whose parts land on the right boxes.
-
-    ``views``: anything with ``free_mask(points) -> (n,) bool`` (an
-    :class:`pipeline.evidence.Evidence`), or None.
+    Candidates (:func:`edge_alignments`) from every template part against every partial
+    part (``config.edge_pairs == "all"``), so a wrong or empty spectral matching (a view
+    showing two of four parts) still leaves the right pair, or from ``matching``'s pairs
+    (``"matched"``, the paper).  Ranked by the mean distance, truncated at
+    ``score_cap``, from about :data:`COARSE_POINTS` partial points to the moved template,
+    the :data:`KEEP_ALIGNMENTS` best are judged as :func:`complete` judges its result:
+    parts matched anew in that pose (:func:`refine_matching`), a template sample carried
+    by each transfer and scored by :func:`transfer_score` (distance from the partial
+    points plus the share ``views`` saw through).  Judged rigidly, a template turned to
+    keep its other proportions out of the space seen empty would win.  ``views``:
+    anything with ``free_mask(points) -> (n,) bool`` (an ``Evidence``), or None.
 
     Returns ``(T (4, 4), info)``; ``info`` holds the number of distinct candidate poses,
     the best one's score (metres), its part pair and ICP's figures."""
@@ -482,13 +479,8 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
 
     cfg = config or CompleteConfig()
     rng = rng or np.random.default_rng(0)
-    sample = partial_points
-    if len(sample) > SCORE_POINTS:
-        sample = sample[np.sort(rng.choice(len(sample), SCORE_POINTS, replace=False))]
-    tsample = template_points
-    if len(tsample) > ALIGN_TEMPLATE_POINTS:
-        tsample = tsample[np.sort(rng.choice(len(tsample), ALIGN_TEMPLATE_POINTS,
-                                             replace=False))]
+    sample = subsample(partial_points, SCORE_POINTS, rng)
+    tsample = subsample(template_points, ALIGN_TEMPLATE_POINTS, rng)
     pairs = (list(matching.pairs) if cfg.edge_pairs == "matched"
              else [(i, j) for i in range(len(a)) for j in range(len(b))])
     Ts = edge_alignments(a, b, pairs, dz)
@@ -497,13 +489,11 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
         t = partial_points.mean(0) - template_points.mean(0)
         Ts = upright_transform(0.0, [t[0], t[1], dz])[None]
         source = np.array([-1])
-    # one of each pose (a box's edges give the same pose several times over), so the
-    # kept candidates are different poses
+    # one of each pose (a box's edges give one pose several times over)
     yaw = np.mod(np.arctan2(Ts[:, 1, 0], Ts[:, 0, 0]), 2 * np.pi)
     key = np.round(np.column_stack([yaw / SAME_YAW, Ts[:, :3, 3] / SAME_SHIFT])).astype(np.int64)
     key[:, 0] %= int(round(2 * np.pi / SAME_YAW))
-    _, first = np.unique(key, axis=0, return_index=True)
-    first = np.sort(first)
+    first = np.sort(np.unique(key, axis=0, return_index=True)[1])
     Ts, source = Ts[first], source[first]
     n_candidates = len(Ts)
     if len(Ts) > KEEP_ALIGNMENTS:
@@ -526,8 +516,7 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
     scores = np.array([judged(T) for T in Ts])
     best = int(np.argmin(scores))
     T_icp, icp = icp_refine(Ts[best], template_points, partial_points, cfg)
-    icp_score = judged(T_icp)
-    # ICP is kept unless it made the transferred template explain the scan worse
+    icp_score = judged(T_icp)  # ICP is kept unless its transfer explains the scan worse
     icp["kept"] = bool(icp_score <= scores[best] + 1e-9)
     T = T_icp if icp["kept"] else Ts[best]
     info = {"candidates": int(n_candidates), "edge_score": float(scores[best]),
@@ -726,10 +715,7 @@ def transfer_score(moved: np.ndarray, seen_through: np.ndarray, partial_points: 
     kept = moved[~seen_through]
     if not len(kept):
         return float(2 * cap)
-    rng = rng or np.random.default_rng(0)
-    sample = partial_points
-    if len(sample) > SCORE_POINTS:
-        sample = sample[np.sort(rng.choice(len(sample), SCORE_POINTS, replace=False))]
+    sample = subsample(partial_points, SCORE_POINTS, rng or np.random.default_rng(0))
     d, _ = cKDTree(kept).query(sample, distance_upper_bound=cap)
     return float(np.minimum(d, cap).mean() + cap * seen_through.mean())
 
