@@ -422,9 +422,10 @@ def plot_bars(path: str | Path, groups: Mapping[str, Mapping[str, float]], *, yl
     """Grouped bars: ``{category: {series: value}}`` (e.g. family -> initial/optimized F1)."""
     import numpy as np
 
-    plt, (fig, ax) = _figure(figsize=(max(6.4, 0.9 * len(groups) + 2), 4.2))
     cats = list(groups)
     names = list(dict.fromkeys(n for g in groups.values() for n in g))
+    # the legend beside the bars, never over them
+    plt, (fig, ax) = _figure(figsize=(max(6.4, 0.9 * len(groups) + 2) + 2.2, 4.2))
     width = 0.8 / max(len(names), 1)
     x = np.arange(len(cats))
     for k, name in enumerate(names):
@@ -437,7 +438,7 @@ def plot_bars(path: str | Path, groups: Mapping[str, Mapping[str, float]], *, yl
     if title:
         ax.set_title(title)
     if names:
-        ax.legend()
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     ax.grid(True, axis="y", alpha=0.3)
     fig.tight_layout()
     _save(fig, path)
