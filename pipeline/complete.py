@@ -475,8 +475,6 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
 
     Returns ``(T (4, 4), info)``; ``info`` holds the number of distinct candidate poses,
     the best one's score (metres), its part pair and ICP's figures."""
-    from scipy.spatial import cKDTree
-
     cfg = config or CompleteConfig()
     rng = rng or np.random.default_rng(0)
     sample = subsample(partial_points, SCORE_POINTS, rng)
@@ -496,22 +494,15 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
     first = np.sort(np.unique(key, axis=0, return_index=True)[1])
     Ts, source = Ts[first], source[first]
     n_candidates = len(Ts)
-    if len(Ts) > KEEP_ALIGNMENTS:
-        tree = cKDTree(template_points)
-        coarse = score_alignments(Ts, template_points,
-                                  sample[::max(1, len(sample) // COARSE_POINTS)],
-                                  cfg.score_cap, tree)
-        keep = np.sort(np.argsort(coarse, kind="stable")[:KEEP_ALIGNMENTS])
-        Ts, source = Ts[keep], source[keep]
+    coarse = score_alignments(Ts, template_points,
+                              sample[::max(1, len(sample) // COARSE_POINTS)], cfg.score_cap)
+    keep = np.sort(np.argsort(coarse, kind="stable")[:KEEP_ALIGNMENTS])
+    Ts, source = Ts[keep], source[keep]
 
     def judged(T: np.ndarray) -> float:
-        m = refine_matching(a, b, T, cfg, matching)
-        best = np.inf
-        for mode in ("parts", "rigid"):
-            moved = transfer(tsample, a, b, m, T, mode)
-            free = views.free_mask(moved) if views is not None else np.zeros(len(moved), bool)
-            best = min(best, transfer_score(moved, free, sample, cfg.score_cap))
-        return best
+        return min(sc for sc, *_ in judge_transfers(
+            tsample, a, b, refine_matching(a, b, T, cfg, matching), T, ("parts", "rigid"),
+            views, sample, cfg.score_cap))
 
     scores = np.array([judged(T) for T in Ts])
     best = int(np.argmin(scores))
@@ -720,6 +711,19 @@ def transfer_score(moved: np.ndarray, seen_through: np.ndarray, partial_points: 
     return float(np.minimum(d, cap).mean() + cap * seen_through.mean())
 
 
+def judge_transfers(template_points: np.ndarray, a: Parts, b: Parts, matching: Matching,
+                    T: np.ndarray, modes, views, partial_points: np.ndarray, cap: float,
+                    rng: np.random.Generator | None = None) -> list[tuple]:
+    """Per transfer of ``modes``: ``(score, mode, moved points, seen-through mask)``, scored
+    by :func:`transfer_score`; ``views`` None: nothing seen through."""
+    out = []
+    for mode in modes:
+        moved = transfer(template_points, a, b, matching, T, mode)
+        free = views.free_mask(moved) if views is not None else np.zeros(len(moved), bool)
+        out.append((transfer_score(moved, free, partial_points, cap, rng), mode, moved, free))
+    return out
+
+
 # --------------------------------------------------------------------------- objects
 def object_names(arrangement: Arrangement) -> list[str]:
     """Object names of an arrangement's cuboids, in first-seen order."""
@@ -878,16 +882,12 @@ def complete(partial, template, config: CompleteConfig | None = None, *,
     views = partial.evidence.scaled_to(partial.arrangement) if partial.evidence else None
     T, info = align(a, b, spectral, tp, pp, dz, cfg, rng, views=views)
     matching = refine_matching(a, b, T, cfg, spectral)
-    modes = ("parts", "rigid") if cfg.transfer == "auto" else (cfg.transfer,)
-    scored = []
-    for mode in modes:
-        moved = transfer(tp, a, b, matching, T, mode)
-        free = (views.free_mask(moved) if cfg.carve and views is not None
-                else np.zeros(len(moved), bool))
-        scored.append((transfer_score(moved, free, pp, cfg.score_cap, rng), mode,
-                       moved[~free], int(free.sum())))
+    scored = judge_transfers(tp, a, b, matching, T, ("parts", "rigid") if cfg.transfer == "auto"
+                             else (cfg.transfer,), views if cfg.carve else None, pp,
+                             cfg.score_cap, rng)
     info["transfer_scores"] = {mode: float(sc) for sc, mode, _, _ in scored}
-    _, chosen, moved, carved = min(scored, key=lambda x: x[0])
+    _, chosen, moved, free = min(scored, key=lambda x: x[0])
+    moved, carved = moved[~free], int(free.sum())
     points = np.concatenate([pp, moved])
     source = np.concatenate([np.zeros(len(pp), np.uint8), np.ones(len(moved), np.uint8)])
     return Completion(points, source, T, matching, a, b, (t_name, p_name), info, carved,
