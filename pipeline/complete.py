@@ -468,10 +468,10 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
     ``score_cap``, from about :data:`COARSE_POINTS` partial points to the moved template,
     the :data:`KEEP_ALIGNMENTS` best are judged as :func:`complete` judges its result:
     parts matched anew in that pose (:func:`refine_matching`), a template sample carried
-    by each transfer and scored by :func:`transfer_score` (distance from the partial
-    points plus the share ``views`` saw through).  Judged rigidly, a template turned to
-    keep its other proportions out of the space seen empty would win.  ``views``:
-    anything with ``free_mask(points) -> (n,) bool`` (an ``Evidence``), or None.
+    by both transfers (whatever ``config.transfer`` and ``carve`` say), scored by
+    :func:`transfer_score` (distance plus the share ``views`` saw through); rigidly, a
+    template turned to keep its other proportions out of the space seen empty would
+    win.  ``views``: anything with ``free_mask(points) -> (n,) bool``, or None.
 
     Returns ``(T (4, 4), info)``; ``info`` holds the number of distinct candidate poses,
     the best one's score (metres), its part pair and ICP's figures."""
