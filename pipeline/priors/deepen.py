@@ -29,6 +29,11 @@ goes no deeper than its object's other parts span along that axis, nor
 further than they reach behind it; a flat slab of its own (thinner than
 ``thin_fraction`` of its width) no further than what it rests on and what rests on it
 (within ``rest_gap``) reach behind it: a plank on a block seen end-on is not a square.
+A neighbour seen as the slab is does not bound it: a slab as deep within a factor
+``sliver_ratio`` (thinner along the view than ``thin_fraction`` of its width) and at
+least ``thin_fraction`` as wide, whose depth is as unseen as the slab's; so a pile of
+flat boxes seen from the front goes back box by box, while one box of the pile whose
+depth the view did see bounds the slivers on it.
 Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
 back), it goes as deep as it fits, to ``resolution``.
 
@@ -99,6 +104,7 @@ class Params:
     steps: int = 4  #: increments of the push
     resolution: float = 0.002  #: metres: how finely a blocked push is found
     rest_gap: float = 0.02  #: metres between a flat slab and what it rests on or carries
+    sliver_ratio: float = 2.0  #: a neighbour as deep as a slab within this factor: no bound
     joined_gap: float = 0.02  #: metres between the faces of parts joined side by side
     joined_share: float = 0.5  #: share of the lower part's height the two share
     joined_min: float = 0.03  #: metres one part must stop short of the other
@@ -133,12 +139,26 @@ def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
     return None
 
 
-def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float) -> float:
+def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float, p: Params) -> float:
     """How far behind ``c``'s face against ``u`` the boxes reach that ``c`` rests on or
-    that rest on it (within ``gap``); inf when there are none."""
+    that rest on it (within ``gap``), but for those seen as ``c`` is: slabs as deep as
+    ``c`` within a factor ``p.sliver_ratio`` and thinner along ``u`` than
+    ``p.thin_fraction`` of their width across it, at least ``p.thin_fraction`` as wide
+    as ``c``, whose depth is as unseen as ``c``'s; inf when there are none."""
     below = resting_on(arr, c, gap)
+    across_u = np.cross([0.0, 0.0, 1.0], u)
+    across_u /= max(float(np.linalg.norm(across_u)), 1e-12)
+    own = float(np.ptp(extent_along(c, u)))
+    wide = p.thin_fraction * float(np.ptp(extent_along(c, across_u)))
+
+    def like_c(q) -> bool:
+        deep, across = float(np.ptp(extent_along(q, u))), float(np.ptp(extent_along(q, across_u)))
+        return (own / p.sliver_ratio <= deep <= p.sliver_ratio * own
+                and deep < p.thin_fraction * across and across >= wide)
+
     touching = [q for q in arr.cuboids if q.id != c.id and (
-        (below is not None and q.id == below.id) or resting_on(arr, q, gap) is c)]
+        (below is not None and q.id == below.id) or resting_on(arr, q, gap) is c)
+        and not like_c(q)]
     if not touching:
         return float("inf")
     return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
@@ -393,7 +413,7 @@ def _face_on(arr, evidence, p: Params):
                     continue
             target = min(width, object_depth(arr, c, axis), reach)
             if height < p.thin_fraction * width and single_part(arr, c):
-                target = min(target, stack_reach(arr, c, u, p.rest_gap))
+                target = min(target, stack_reach(arr, c, u, p.rest_gap, p))
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break

@@ -438,6 +438,34 @@ def test_a_flat_slab_seen_by_its_edge_is_as_deep_as_what_it_rests_on():
     assert ids == ["plank"] and out.cuboid("plank").size[1] > 1.0
 
 
+def test_a_stack_of_slabs_seen_face_on_is_not_held_to_slivers_by_each_other():
+    """Three flat boxes (0.3 m square, 9 cm tall) stacked and seen face-on from their
+    middle's height, each fitted as its front 2 cm: a neighbour seen as the slab is (as
+    deep within a factor 2, as wide) says nothing of how deep the slab is (its depth is
+    as unseen), so each goes back to a square footprint, as the true boxes are; with the
+    neighbours' slivers as the limit, all three stayed 2 cm deep.  When the bottom box
+    was fitted 14 cm deep, it bounds the slivers on it: they go back to its far face and
+    no further (the pile is as deep as the box whose depth was seen)."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    def pile(depth):
+        return [box(f"s{k}", (0.0, depth / 2 - 0.15, 0.045 + 0.09 * k), (0.3, depth, 0.09),
+                    object=f"s{k}") for k in range(3)]
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 0.135), (0.0, 0.0, 0.135))
+    for truth, fitted in ((pile(0.3), (0.02, 0.02, 0.02)), (pile(0.14), (0.14, 0.02, 0.02))):
+        views = [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+        seen = tuple(box(t.id, (0.0, d / 2 - 0.15, t.center[2]), (0.3, d, 0.09), object=t.object)
+                     for t, d in zip(truth, fitted, strict=True))
+        out, ids = deepen_thin_boxes(Arrangement(seen, (ground(),)), views)
+        assert sorted(ids) == sorted(t.id for t, d in zip(truth, fitted, strict=True)
+                                     if d < t.size[1])
+        for t in truth:
+            assert_box(out.cuboid(t.id), t.size, t.center)
+
+
 def _oblique_row_view(angle_deg, height=0.3):
     """A row of three touching boxes seen at ``angle_deg`` from its front face's normal,
     from the middle box's mid height (its top and, beyond 0 degrees, the side turned
