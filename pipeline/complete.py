@@ -396,16 +396,14 @@ def edge_alignments(a: Parts, b: Parts, pairs, dz: float) -> np.ndarray:
 
 
 def score_alignments(Ts: np.ndarray, template_points: np.ndarray, partial_points: np.ndarray,
-                     cap: float, tree=None) -> np.ndarray:
+                     cap: float) -> np.ndarray:
     """(n,) mean distance (each truncated at ``cap``) from the partial points to the
-    template points moved by each ``Ts[k]`` (template -> partial).  ``tree``: a
-    ``cKDTree`` of ``template_points`` already built (one is built otherwise)."""
+    template points moved by each ``Ts[k]`` (template -> partial)."""
     from scipy.spatial import cKDTree
 
     if not len(Ts):
         return np.zeros(0)
-    if tree is None:
-        tree = cKDTree(template_points)
+    tree = cKDTree(template_points)
     R = Ts[:, :3, :3]
     t = Ts[:, :3, 3]
     # partial points in the template frame: R^T (p - t), every candidate at once
@@ -482,7 +480,7 @@ def align(a: Parts, b: Parts, matching: Matching, template_points: np.ndarray,
     pairs = (list(matching.pairs) if cfg.edge_pairs == "matched"
              else [(i, j) for i in range(len(a)) for j in range(len(b))])
     Ts = edge_alignments(a, b, pairs, dz)
-    source = np.repeat(np.arange(len(pairs)), 32)
+    source = np.repeat(np.arange(len(pairs)), len(Ts) // max(len(pairs), 1))  # pose's pair
     if not len(Ts):  # no pairs: centroids on each other, no turn
         t = partial_points.mean(0) - template_points.mean(0)
         Ts = upright_transform(0.0, [t[0], t[1], dz])[None]

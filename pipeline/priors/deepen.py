@@ -139,29 +139,29 @@ def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
     return None
 
 
-def stack_reach(arr: Arrangement, c, u: np.ndarray, gap: float, p: Params) -> float:
+def stack_reach(arr: Arrangement, c, u: np.ndarray, p: Params) -> float:
     """How far behind ``c``'s face against ``u`` the boxes reach that ``c`` rests on or
-    that rest on it (within ``gap``), but for those seen as ``c`` is: slabs as deep as
-    ``c`` within a factor ``p.sliver_ratio`` and thinner along ``u`` than
+    that rest on it (within ``p.rest_gap``), but for those seen as ``c`` is: slabs as
+    deep as ``c`` within a factor ``p.sliver_ratio`` and thinner along ``u`` than
     ``p.thin_fraction`` of their width across it, at least ``p.thin_fraction`` as wide
     as ``c``, whose depth is as unseen as ``c``'s; inf when there are none."""
-    below = resting_on(arr, c, gap)
+    below = resting_on(arr, c, p.rest_gap)
     across_u = np.cross([0.0, 0.0, 1.0], u)
     across_u /= max(float(np.linalg.norm(across_u)), 1e-12)
-    own = float(np.ptp(extent_along(c, u)))
+    near, far = extent_along(c, u)
     wide = p.thin_fraction * float(np.ptp(extent_along(c, across_u)))
 
     def like_c(q) -> bool:
         deep, across = float(np.ptp(extent_along(q, u))), float(np.ptp(extent_along(q, across_u)))
-        return (own / p.sliver_ratio <= deep <= p.sliver_ratio * own
+        return ((far - near) / p.sliver_ratio <= deep <= p.sliver_ratio * (far - near)
                 and deep < p.thin_fraction * across and across >= wide)
 
     touching = [q for q in arr.cuboids if q.id != c.id and (
-        (below is not None and q.id == below.id) or resting_on(arr, q, gap) is c)
+        (below is not None and q.id == below.id) or resting_on(arr, q, p.rest_gap) is c)
         and not like_c(q)]
     if not touching:
         return float("inf")
-    return max(extent_along(q, u)[1] for q in touching) - extent_along(c, u)[0]
+    return max(extent_along(q, u)[1] for q in touching) - near
 
 
 def across(c, axis: int) -> float:
@@ -413,7 +413,7 @@ def _face_on(arr, evidence, p: Params):
                     continue
             target = min(width, object_depth(arr, c, axis), reach)
             if height < p.thin_fraction * width and single_part(arr, c):
-                target = min(target, stack_reach(arr, c, u, p.rest_gap, p))
+                target = min(target, stack_reach(arr, c, u, p))
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break
