@@ -190,14 +190,20 @@ def merged(a: Cuboid, b: Cuboid) -> Cuboid:
 
 
 def lifted_from_plane(c: Cuboid, sup) -> Cuboid:
-    """``c`` without its part below a support plane (an upright box loses its bottom)."""
+    """``c`` without its part below a support plane (an upright box loses its bottom).
+
+    The face pushed in is the one that loses the least share of the box's extent along
+    it: the cut along axis ``k`` is the depth over the axis' cosine with the plane's
+    normal, so a box askew to a wall loses its end rather than all its thickness."""
     d = sup.signed_distance(c.corners())
     depth = -d.min()
     if depth <= 0:
         return c
     cos = np.abs(c.rotation.T @ sup.normal)
-    ax = int(np.argmax(cos))
-    cut = min(depth / max(cos[ax], 1e-6), 0.9 * c.size[ax])
+    need = depth / np.maximum(cos, 1e-6)
+    share = np.where(need < 0.9 * c.size, need / c.size, np.inf)
+    ax = int(np.argmin(share)) if np.isfinite(share).any() else int(np.argmax(cos))
+    cut = min(need[ax], 0.9 * c.size[ax])
     size = c.size.copy()
     size[ax] -= cut
     u = c.rotation[:, ax] * np.sign(c.rotation[:, ax] @ sup.normal)
