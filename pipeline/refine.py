@@ -161,8 +161,8 @@ def _project(delta0: np.ndarray, A: np.ndarray, G: np.ndarray, h: np.ndarray) ->
 
 def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: float | None = None,
            tilt_deg: float = 0.0, deadline: float | None = None,
-           contacts: ContactSet | None = None, solve_cache: dict | None = None,
-           stall: float | None = None) -> RefineResult:
+           contacts: ContactSet | None = None, solve_cache: dict | None = None
+           ) -> RefineResult:
     """Lower the stability energy of ``arr`` keeping its contacts (see module docstring).
 
     Steps stop once the energy is below a hundredth of ``threshold`` (the stability
@@ -173,10 +173,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     stands with a margin.  ``deadline`` (a ``time.perf_counter()`` value) stops the steps
     early; the best arrangement so far is returned.  ``contacts`` (those of ``arr``) and
     ``solve_cache`` (component solutions kept by the caller, see ``check_stability``)
-    only save work.  ``stall``: stop after a step that leaves more than this fraction of
-    the energy (a box a few millimetres from balancing loses most of it in a step; one
-    whose support was not seen loses a percent); a body that bears none of its weight
-    (E of 1 or more: nothing under it) is then not refined at all.
+    only save work.
     """
     import time
 
@@ -190,8 +187,6 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     steps = 0
     scale = arr.scale_length()
     h_fd = 1e-3 * scale
-    if stall is not None and E0 >= 1.0:
-        return RefineResult(arr, E0, E0, 0, evals)
     while steps < max_steps and np.isfinite(E) and E > threshold / 100:
         if deadline is not None and time.perf_counter() > deadline:
             break
@@ -224,7 +219,7 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
         k, grad = best
         A, G, hh = _constraints(arr, k, energy.contacts(arr))
         c = arr.cuboids[k]
-        improved = stalled = False
+        improved = False
         alpha = 0.05 * scale
         for _ in range(6):
             delta = _project(-alpha * grad / np.linalg.norm(grad), A, G, hh)
@@ -234,12 +229,11 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
             e, r, cs = energy(trial)
             evals += 1
             if e < E:
-                stalled = stall is not None and e > stall * E
                 arr, E, res, improved = trial, e, r, True
                 energy.rebase(trial, cs)
                 break
             alpha /= 2
         steps += 1
-        if not improved or stalled:
+        if not improved:
             break
     return RefineResult(arr, E0, E, steps, evals)
