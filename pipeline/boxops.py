@@ -192,17 +192,22 @@ def merged(a: Cuboid, b: Cuboid) -> Cuboid:
 def lifted_from_plane(c: Cuboid, sup) -> Cuboid:
     """``c`` without its part below a support plane (an upright box loses its bottom).
 
-    The face pushed in is the one that loses the least share of the box's extent along
-    it: the cut along axis ``k`` is the depth over the axis' cosine with the plane's
-    normal, so a box askew to a wall loses its end rather than all its thickness."""
+    The face pushed in is the one along the axis closest to the plane's normal; the cut
+    along axis ``k`` is the depth over the axis' cosine with the normal.  Where that cut
+    would take more than the box has along it (a long box askew to a wall, poking
+    through with its end), the axis that loses the least share of its extent gives way
+    instead: the box loses its end rather than all its thickness."""
     d = sup.signed_distance(c.corners())
     depth = -d.min()
     if depth <= 0:
         return c
     cos = np.abs(c.rotation.T @ sup.normal)
     need = depth / np.maximum(cos, 1e-6)
-    share = np.where(need < 0.9 * c.size, need / c.size, np.inf)
-    ax = int(np.argmin(share)) if np.isfinite(share).any() else int(np.argmax(cos))
+    ax = int(np.argmax(cos))
+    if need[ax] >= 0.9 * c.size[ax]:
+        share = np.where(need < 0.9 * c.size, need / c.size, np.inf)
+        if np.isfinite(share).any():
+            ax = int(np.argmin(share))
     cut = min(need[ax], 0.9 * c.size[ax])
     size = c.size.copy()
     size[ax] -= cut

@@ -1,4 +1,5 @@
-"""A box fitted through a support plane loses the part beyond it, along the axis that
+"""A box fitted through a support plane loses the part beyond it along the axis closest
+to the plane's normal, or, where that axis has too little to give, along the axis that
 costs the least share of its extent (``pipeline.boxops.lifted_from_plane``)."""
 
 from __future__ import annotations
@@ -35,6 +36,19 @@ def test_a_box_askew_through_a_wall_loses_its_end_not_its_thickness():
     assert abs(d.min()) < 1e-9  # touches the wall, no longer in it
     assert np.isclose(d.max(), WALL.signed_distance(b.corners()).max())  # far end stays
     assert np.allclose(cut.rotation, b.rotation)
+
+
+def test_a_board_fitted_a_centimetre_into_a_wall_loses_thickness_not_length():
+    # a 1 m board 3 cm thick along the wall x = 0, turned 3 degrees, its back 1 cm in the
+    # wall (depth noise): the axis closest to the wall's normal can give way, so it does
+    # (cutting the length would take 0.19 m of the 1 m, a smaller share than 1 cm of 3)
+    yaw = np.radians(90.0 + 3.0)
+    size = np.array([1.0, 0.03, 0.3])
+    reach = 0.5 * (size[0] * abs(np.cos(yaw)) + size[1] * abs(np.sin(yaw)))
+    b = box("b0", (reach - 0.01, 0.0, 1.0), size, yaw=yaw)
+    cut = lifted_from_plane(b, WALL)
+    assert np.allclose(cut.size, [1.0, 0.03 - 0.01 / abs(np.sin(yaw)), 0.3], atol=1e-9)
+    assert abs(WALL.signed_distance(cut.corners()).min()) < 1e-9
 
 
 def test_an_upright_box_sunk_into_the_floor_loses_its_bottom():
