@@ -291,7 +291,11 @@ class _Group:
         elif quick and not touched.all():
             out = (False, "floating")
         else:
-            arr = geom.with_(contacts=tuple(self.contacts_of(assignment)))
+            # a fixed option whose boxes meet in no contact patch (along an edge, at a
+            # corner) glues nothing: as in :func:`finalize`, it holds nothing here either
+            touching = cs.lookup()
+            arr = geom.with_(contacts=tuple(c for c in self.contacts_of(assignment)
+                                            if c.key in touching))
             try:
                 res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
                                       tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache,

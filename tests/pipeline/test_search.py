@@ -903,3 +903,22 @@ def test_when_either_box_can_give_way_the_one_whose_trim_keeps_more_standing_doe
     assert blind.cuboid("a_top").center[2] - blind.cuboid("a_top").size[2] / 2 == pytest.approx(
         0.65, abs=2e-3)  # on the crate, off its pedestal
     assert falls(blind.cuboids) > 0
+
+
+def test_a_glue_option_between_boxes_that_meet_in_no_patch_holds_nothing_and_sinks_nothing():
+    # two blocks standing on the ground 10 cm apart, offered a plain fixed joint (a
+    # candidate whose extensions leave the pair meeting along an edge or not at all: room
+    # 105014's slanted board against a book).  The joint glues nothing, as finalize already
+    # says; before, the statics refused the node, the root failed as a whole and the
+    # group fell back to gluing every candidate (both blocks fixed to the ground)
+    from pipeline.extend import Edge, Option
+
+    a = box("a", (0, 0, 0.25), (0.5, 0.5, 0.5))
+    b = box("b", (0.6, 0, 0.25), (0.5, 0.5, 0.5))
+    arr = Arrangement((a, b), (ground(),))
+    edges = [e for e in candidate_edges(arr) if isinstance(e.b, str)]
+    res = search(arr, edges + [Edge(0, 1, (Option("none"), Option("fixed")))])
+    assert res.stable and res.unstable_ids == () and res.stats.unstable_groups == 0
+    assert {(c.a, c.b, c.type) for c in res.arrangement.contacts} == {
+        ("a", "ground", "touch"), ("b", "ground", "touch")}
+    assert res.n_fixed == 0
