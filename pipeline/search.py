@@ -261,13 +261,13 @@ class _Group:
         self.recent = (self.recent + [(keyset, geom, cs)])[-RECENT_BASES:]
         return geom, cs
 
-    def contacts_of(self, assignment: tuple[int, ...]) -> list[Contact]:
-        out = []
-        for e, opts, i in zip(self.edges, self.options, assignment):
-            if opts[i].type == "fixed":
-                a, b = _edge_name(self.full, e)
-                out.append(Contact(a, b, "fixed"))
-        return out
+    def contacts_of(self, assignment: tuple[int, ...], cs: ContactSet) -> list[Contact]:
+        """Its fixed contacts whose boxes meet in a patch of ``cs`` (else: no glue)."""
+        touching = cs.lookup()
+        fixed = (Contact(*_edge_name(self.full, e), "fixed")
+                 for e, opts, i in zip(self.edges, self.options, assignment)
+                 if opts[i].type == "fixed")
+        return [c for c in fixed if c.key in touching]
 
     def evaluate(self, assignment: tuple[int, ...], quick: bool = True):
         """(stable, result-or-status) of an assignment, cached.
@@ -291,11 +291,7 @@ class _Group:
         elif quick and not touched.all():
             out = (False, "floating")
         else:
-            # a fixed option whose boxes meet in no contact patch (along an edge, at a
-            # corner) glues nothing: as in :func:`finalize`, it holds nothing here either
-            touching = cs.lookup()
-            arr = geom.with_(contacts=tuple(c for c in self.contacts_of(assignment)
-                                            if c.key in touching))
+            arr = geom.with_(contacts=tuple(self.contacts_of(assignment, cs)))
             try:
                 res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
                                       tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache,
