@@ -261,14 +261,6 @@ class _Group:
         self.recent = (self.recent + [(keyset, geom, cs)])[-RECENT_BASES:]
         return geom, cs
 
-    def contacts_of(self, assignment: tuple[int, ...], cs: ContactSet) -> list[Contact]:
-        """Its fixed contacts whose boxes meet in a patch of ``cs`` (else: no glue)."""
-        touching = cs.lookup()
-        fixed = (Contact(*_edge_name(self.full, e), "fixed")
-                 for e, opts, i in zip(self.edges, self.options, assignment)
-                 if opts[i].type == "fixed")
-        return [c for c in fixed if c.key in touching]
-
     def evaluate(self, assignment: tuple[int, ...], quick: bool = True):
         """(stable, result-or-status) of an assignment, cached.
 
@@ -291,7 +283,10 @@ class _Group:
         elif quick and not touched.all():
             out = (False, "floating")
         else:
-            arr = geom.with_(contacts=tuple(self.contacts_of(assignment, cs)))
+            fixed = (Contact(*_edge_name(self.full, e), "fixed")
+                     for e, opts, i in zip(self.edges, self.options, assignment)
+                     if opts[i].type == "fixed")
+            arr = geom.with_(contacts=tuple(_glued(fixed, cs)))
             try:
                 res = check_stability(arr, mu=self.mu, threshold=self.threshold, contacts=cs,
                                       tilt_deg=ROBUST_TILT_DEG, solve_cache=self.solve_cache,
@@ -840,6 +835,12 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
     return SearchResult(final, stable, n_fixed, added, tuple(unstable), stats, choices)
 
 
+def _glued(fixed, cs: ContactSet) -> list[Contact]:
+    """The ``fixed`` contacts whose boxes meet in a patch of ``cs``: the others glue nothing."""
+    touching = cs.lookup()
+    return [c for c in fixed if c.key in touching]
+
+
 def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
              threshold: float | None = None) -> Arrangement:
     """List every touching pair as a contact (``fixed`` where chosen, else ``touch``) and
@@ -851,8 +852,7 @@ def finalize(geom: Arrangement, fixed: list[Contact], mu: float = 0.7,
     shared through a bounded cache keyed by the digest of each sub-problem."""
     cs = _finalize_contacts(geom)
     fixed_keys = {c.key for c in fixed}
-    touching = cs.lookup()
-    listed = [c for c in fixed if c.key in touching]
+    listed = _glued(fixed, cs)
     for a, b in cs.pairs:
         c = Contact(a, b, "touch")
         if c.key not in fixed_keys:
