@@ -46,8 +46,12 @@ CONTACT_ABS_TOL = 1e-6
 #: A contact whose normal is within this many sine-units of horizontal
 #: (|n_z| < SIDE_CONTACT_MAX_NZ) and whose interface is an area (>= 3 vertices) is a
 #: *side contact*: it may push (normal force) but carries no friction unless fixed.
-#: See the side-friction trap in ``pipeline.stability``.
-SIDE_CONTACT_MAX_NZ = 0.2588190451025208  # sin(15 degrees)
+#: See the side-friction trap in ``pipeline.stability``.  30 degrees: a body pressed on
+#: a face that steep by its own weight slides unless mu >= tan(60 degrees) = 1.73, far
+#: above the mu = 0.7 we model, so friction found there is paid by a squeeze that
+#: nothing provides (15 degrees let a board tilted 15.5 degrees hang clamped between two
+#: parallel faces in Open3D's NYU frame; both engines slid it out).
+SIDE_CONTACT_MAX_NZ = 0.5  # sin(30 degrees)
 
 #: Orthonormality tolerance for rotation matrices read from files.
 ROTATION_TOL = 1e-6

@@ -60,15 +60,20 @@ with arbitrarily large normal forces whose friction then holds a box up: a box
 no preload nothing produces that squeeze, and both MuJoCo and PyBullet drop it.  We
 remove friction from *side contacts*: face-to-face interfaces (>= 3 vertices), and edge
 contacts along a line steeper than 45 degrees (two upright boxes slightly yawed against
-each other touch along a vertical edge), whose normal is within 15 degrees of
-horizontal (``constants.SIDE_CONTACT_MAX_NZ``) and that are not fixed.  They still push
+each other touch along a vertical edge), whose normal is within 30 degrees of
+horizontal (``constants.SIDE_CONTACT_MAX_NZ``: faces that steep hold nothing by the
+friction a body's weight presses on them, for any mu below 1.73) and that are not
+fixed.  They still push
 (normal force), so lateral bracing works; corners and edges along flatter lines keep
 friction, so a plank leaning with its edge on a wall keeps the ladder limit :math:`\tan\theta = (1-\mu^2)/(2\mu)` (20.0 degrees for mu = 0.7).  That
 exception needs the body to stand on something: a body that no contact pushes upward
 (:func:`hanging_contacts`) gets no friction on its corner and edge side contacts either
 (a box held at 45 degrees by one edge on the wall and one on a desk's side, squeezed by
 the desk standing on the floor: statics accepted it, both engines drop it 0.5 m).  Pass
-``side_friction=True`` to get plain statics.
+``side_friction=True`` to get plain statics.  What is left of the trap: a body clamped
+between two parallel faces less steep than 60 degrees is still held by a squeeze (both
+engines let it slide); telling that squeeze from the weight of a body resting on it
+needs the contacts' compliance, which the rigid statics does not model.
 """
 
 from __future__ import annotations

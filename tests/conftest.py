@@ -43,6 +43,27 @@ def leaning_plank(theta_deg: float, length: float = 1.0, thickness: float = 0.02
     return Arrangement((Cuboid("plank", center, R, size),), (ground(), wall))
 
 
+def slanted_clamp(phi_deg: float) -> Arrangement:
+    """A board (0.1 x 0.3 x 0.4 m) tilted ``phi_deg`` about y, clamped in the air between
+    two tilted 0.3 x 0.4 x 2 m jaws glued to the ground: its two big faces touch the jaws'
+    faces exactly, and their normal points ``phi_deg`` below and above horizontal."""
+    from pipeline.model import Contact, rotation_about_axis
+
+    R = rotation_about_axis(np.array([0.0, 1.0, 0.0]), np.radians(phi_deg))
+    x, z = R[:, 0], R[:, 2]
+    mid = np.array([0.0, 0.0, 0.7])
+    jaws = []
+    for name, side in (("jaw0", -1.0), ("jaw1", 1.0)):
+        size = np.array([0.3, 0.4, 2.0])
+        base = mid + side * (0.05 + 0.15) * x
+        # slid along its own axis until its lowest edge is on the floor
+        t = (np.abs(R[2]) @ (size / 2) - base[2]) / R[2, 2]
+        jaws.append(Cuboid(name, base + t * z, R, size))
+    board = Cuboid("board", mid, R, np.array([0.1, 0.3, 0.4]))
+    return Arrangement((*jaws, board), (ground(),),
+                       (Contact("jaw0", "ground", "fixed"), Contact("jaw1", "ground", "fixed")))
+
+
 @pytest.fixture
 def real_data() -> Path:
     if not REAL_DATA.is_dir():

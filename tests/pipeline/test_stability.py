@@ -9,7 +9,7 @@ from pipeline.constants import GRAVITY
 from pipeline.model import Arrangement, Contact, Cuboid, Support, box, ground
 from pipeline.stability import check_stability, contact_force_newtons
 from synth_scenes.brick_wall import brick_wall
-from tests.conftest import leaning_plank, overhang_scene
+from tests.conftest import leaning_plank, overhang_scene, slanted_clamp
 
 
 @pytest.mark.parametrize("fraction, stable", [(0.0, True), (0.30, True), (0.49, True),
@@ -170,6 +170,22 @@ def test_side_friction_trap_along_vertical_edges():
     assert check_stability(arr, side_friction=True).stable  # plain statics: wedged
     res = check_stability(arr)
     assert not res.stable and res.unstable_ids == ["w"]
+
+
+@pytest.mark.parametrize("phi, stable", [(10, False), (20, False), (29, False), (31, True)])
+def test_faces_within_30_degrees_of_vertical_carry_no_friction_so_a_clamped_board_falls(phi, stable):
+    # a board clamped in the air between two jaws whose faces lean phi from vertical:
+    # gravity presses it on the lower jaw with sin(phi) of its weight and pulls it along
+    # the face with cos(phi), which friction holds only for mu >= 1/tan(phi) (2.7 at 20
+    # degrees with mu = 0.7); plain statics holds it by squeezing it between the jaws.
+    # Faces within 30 degrees of vertical are side contacts (no friction); flatter faces
+    # keep friction, so the squeeze is still found there (both engines drop the board at
+    # 35 degrees too: tests/simulate/test_engines.py)
+    arr = slanted_clamp(phi)
+    assert check_stability(arr, side_friction=True).stable  # plain statics: squeezed
+    res = check_stability(arr)
+    assert res.stable is stable
+    assert res.unstable_ids == ([] if stable else ["board"])
 
 
 def _hanging_by_two_edges():

@@ -83,6 +83,20 @@ def test_side_friction_trap_is_dropped(engine: str) -> None:
 
 
 @pytest.mark.parametrize("engine", ENGINES)
+@pytest.mark.parametrize("phi", [20.0, 35.0])
+def test_a_board_clamped_between_slanted_faces_slides_out(engine: str, phi: float) -> None:
+    """No preload squeezes a board between two parallel faces: it slides down the lower
+    one (at 20 degrees the analytic check agrees; at 35 its faces keep friction and the
+    squeeze is still admitted, see tests/pipeline/test_stability.py)."""
+    from tests.conftest import slanted_clamp
+
+    r = settle(slanted_clamp(phi), engine)
+    assert not r.stable
+    assert _motion(r, "board").translation > 0.05
+    assert _motion(r, "jaw0").translation < 1e-6 and _motion(r, "jaw1").translation < 1e-6
+
+
+@pytest.mark.parametrize("engine", ENGINES)
 @pytest.mark.parametrize("welds", ["exact", "constraint"])
 def test_fused_cantilever_does_not_sag(engine: str, welds: str) -> None:
     r = settle(cantilever(0.8), engine, welds=welds)
