@@ -89,7 +89,7 @@ def test_a_board_clamped_between_slanted_faces_slides_out(engine: str, phi: floa
     one (at 20 degrees the analytic check agrees; at 35 its faces keep friction and the
     squeeze is still admitted, see tests/pipeline/test_stability.py).
 
-    Measured: MuJoCo 0.25 m at 20 degrees and 0.09 m at 35, PyBullet 0.52 m and 0.62 m
+    Measured: MuJoCo 0.25 m at 20 degrees and 0.09 m at 35, PyBullet 0.52 m and 0.62 m.
     """
     from tests.conftest import slanted_clamp
 
