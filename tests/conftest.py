@@ -17,7 +17,16 @@ settings.register_profile("repeatable", derandomize=True)
 settings.register_profile("explore", derandomize=False)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "repeatable"))
 
-from pipeline.model import Arrangement, Cuboid, Support, box, box_corners, ground  # noqa: E402
+from pipeline.model import (  # noqa: E402
+    Arrangement,
+    Contact,
+    Cuboid,
+    Support,
+    box,
+    box_corners,
+    ground,
+    rotation_about_axis,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 REAL_DATA = REPO.parent / "shared" / "data" / "real"
@@ -47,8 +56,6 @@ def slanted_clamp(phi_deg: float) -> Arrangement:
     """A board (0.1 x 0.3 x 0.4 m) tilted ``phi_deg`` about y, clamped in the air between
     two tilted 0.3 x 0.4 x 2 m jaws glued to the ground: its two big faces touch the jaws'
     faces exactly, and their normal points ``phi_deg`` below and above horizontal."""
-    from pipeline.model import Contact, rotation_about_axis
-
     R = rotation_about_axis(np.array([0.0, 1.0, 0.0]), np.radians(phi_deg))
     x, z = R[:, 0], R[:, 2]
     mid = np.array([0.0, 0.0, 0.7])

@@ -97,14 +97,13 @@ def apply(arr, evidence, p: Params, ctx):
     from ..stability import check_stability
 
     final, mu, threshold, deadline = arr, ctx.mu, ctx.threshold, ctx.deadline
-    tilt = ROBUST_TILT_DEG
     objects = {c.id: c.object for c in final.cuboids}
     # component solutions shared by every check below (digest-keyed: exact reuse)
     cache: dict = {}
 
     def stands(arr: Arrangement, cs=None) -> bool:
         try:
-            return check_stability(arr, mu=mu, threshold=threshold, tilt_deg=tilt, contacts=cs,
+            return check_stability(arr, mu=mu, threshold=threshold, tilt_deg=ROBUST_TILT_DEG, contacts=cs,
                                    solve_cache=cache, verdict_only=True).stable
         except InputError:  # a fixed pair pulled apart
             return False

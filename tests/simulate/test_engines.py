@@ -22,6 +22,7 @@ from synth_scenes.random_arrangements import (
     with_yaw,
     yawed_on_edge,
 )
+from tests.conftest import slanted_clamp
 
 pytest.importorskip("mujoco")
 pytest.importorskip("pybullet")
@@ -91,8 +92,6 @@ def test_a_board_clamped_between_slanted_faces_slides_out(engine: str, phi: floa
 
     Measured: MuJoCo 0.25 m at 20 degrees and 0.09 m at 35, PyBullet 0.52 m and 0.62 m.
     """
-    from tests.conftest import slanted_clamp
-
     r = settle(slanted_clamp(phi), engine)
     assert not r.stable
     assert _motion(r, "board").translation > 0.05
