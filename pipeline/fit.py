@@ -108,6 +108,14 @@ def aligned_share(normals: np.ndarray, R: np.ndarray, tol_deg: float = 15.0) -> 
     return float((np.abs(n @ R).max(axis=1) >= np.cos(np.radians(tol_deg))).mean())
 
 
+def footprint_area(points: np.ndarray, R: np.ndarray) -> float:
+    """Area (m^2) of the rectangle in frame ``R`` holding ``points (n, 3)`` from their
+    1st to their 99th percentile along its two horizontal axes."""
+    xy = np.asarray(points)[:, :2] @ np.asarray(R)[:2, :2]
+    lo, hi = np.percentile(xy, [1.0, 99.0], axis=0)
+    return float(np.prod(hi - lo))
+
+
 def yaw_rotation(a: float) -> np.ndarray:
     """(3, 3) rotation about z by ``a`` radians."""
     c, s = np.cos(a), np.sin(a)
@@ -144,7 +152,12 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
     With ``walls`` (supports), an object that reaches a wall (:func:`wall_yaw`) stands
     square to it unless its normals clearly say otherwise: at 4-5 m the sensor's depth
     steps put ridges across a board that face the camera, and a wall shelf's normals
-    then vote for the viewing direction.
+    then vote for the viewing direction.  Its footprint says so too: a box's points
+    spread least in its own frame (the minimum-area rectangle's principle), so where
+    the wall's frame holds the points in a footprint (1st-99th percentile extents) no
+    larger than the normals' frame does, the normals are the ridges and the wall wins
+    (a shelf against a wall seen obliquely: its boards' front edges, a few
+    centimetres tall, smear into normals facing the camera).
     """
     has_normals = normals is not None and len(normals)
     a = normal_yaw(normals) if has_normals else None
@@ -152,7 +165,8 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
     w = wall_yaw(points, walls) if has_normals and len(walls) else None
     if w is not None:
         Rw = yaw_rotation(w)
-        if aligned_share(normals, Rw) >= aligned_share(normals, R) - WALL_SHARE_MARGIN:
+        if (aligned_share(normals, Rw) >= aligned_share(normals, R) - WALL_SHARE_MARGIN
+                or footprint_area(points, Rw) <= footprint_area(points, R)):
             return Rw
     return R
 

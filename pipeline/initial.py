@@ -35,9 +35,6 @@ MASK_ERODE_PX = 2
 MASK_DEPTH_REL = 0.02
 #: Radius of the neighbourhood a normal is estimated from, in cells.
 NORMAL_RADIUS_CELLS = 4.0
-#: An object of several parts whose lowest points lie this far above the floor (metres)
-#: hangs; near a wall it is taken to hang on it (:func:`pipeline.fit.upright_rotation`).
-HANG_MIN_HEIGHT = 0.1
 #: Smallest voxel, metres (below the depth noise of any consumer sensor).
 MIN_CELL = 0.002
 #: Only boxes fitted to at least this many of their own points are snapped to the colour
@@ -277,17 +274,16 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     if seg.any():
         normals[seg] = estimate_normals(world[seg], NORMAL_RADIUS_CELLS * cell)
     # the parts of one object share its upright frame (more faces seen, one yaw); an
-    # object of several parts that hangs (its lowest points above the floor) near a
-    # wall is fixed to that wall and square to it (a wall shelf)
+    # object of several parts (furniture) that reaches a wall stands square to it, as
+    # a wall shelf hangs and a bookcase or a desk stands against one, unless its faces
+    # and its footprint both say otherwise (pipeline.fit.upright_rotation)
     frames: dict[str, np.ndarray] = {}
     if parts:
         for nm in sorted(set(names)):
             ks = [k for k, n2 in enumerate(names) if n2 == nm]
             sel = np.isin(labels, ks)
-            hangs = (len(ks) > 1 and sel.any()
-                     and float(np.percentile(world[sel, 2], 1.0)) > HANG_MIN_HEIGHT)
             frames[nm] = upright_rotation(world[sel], normals[sel],
-                                          frame.walls if hangs else ())
+                                          frame.walls if len(ks) > 1 else ())
     boxes = []  # (object index, FittedBox)
     solid = _solid_test(scan, T_world_cam, pix_label, tol=cell) if camera else None
     for k in range(len(names)):

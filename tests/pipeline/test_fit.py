@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 from pipeline.fit import (
     SLANT_MARGIN,
+    WALL_SHARE_MARGIN,
     _sat,
     aligned_share,
     box_iou,
@@ -17,6 +18,7 @@ from pipeline.fit import (
     fit_object,
     fit_part,
     fit_upright,
+    footprint_area,
     ground_rotation,
     grow_slab,
     lean_frame,
@@ -293,7 +295,7 @@ def _yaw_deg(R):
     return float(np.degrees(np.arctan2(R[1, 0], R[0, 0])) % 90.0)
 
 
-def test_a_hanging_board_near_a_wall_is_square_to_it_unless_its_faces_say_otherwise():
+def test_an_object_near_a_wall_is_square_to_it_unless_its_faces_and_footprint_say_otherwise():
     # a board along the wall y = 0 (the frame of yaw 0).  Its normals, as the sensor's
     # depth steps leave them at 4-5 m: 88 % up, 12 % horizontal, spread evenly over
     # 67 +- 25 degrees (coherent enough for normal_yaw, which says 67; only 3 % more of
@@ -313,11 +315,24 @@ def test_a_hanging_board_near_a_wall_is_square_to_it_unless_its_faces_say_otherw
     away = pts + [0.0, 0.5, 0.0]
     assert wall_yaw(away, [wall]) is None
     assert _yaw_deg(upright_rotation(away, normals, [wall])) == pytest.approx(67.0, abs=0.5)
-    # a crate turned 30 degrees against the wall, its side faces seen crisply, stays turned
+    # a crate turned 30 degrees with one corner against the wall, its side faces seen
+    # crisply, stays turned: its normals and its footprint both say 30 degrees
     crisp = np.vstack([np.tile([0.0, 0.0, 1.0], (600, 1)),
                        np.tile([np.cos(np.radians(30)), np.sin(np.radians(30)), 0.0], (250, 1)),
                        np.tile([-np.sin(np.radians(30)), np.cos(np.radians(30)), 0.0], (150, 1))])
-    assert _yaw_deg(upright_rotation(pts, crisp, [wall])) == pytest.approx(30.0, abs=1e-6)
+    crate = np.column_stack([rng.uniform(0, 0.5, 1000), rng.uniform(0, 0.2, 1000),
+                             np.full(1000, 0.3)]) @ rotation_about_z(np.radians(30)).T
+    crate[:, 1] += 0.01 - crate[:, 1].min()
+    assert wall_yaw(crate, [wall]) == pytest.approx(0.0)
+    assert footprint_area(crate, rotation_about_z(0.0)) > footprint_area(
+        crate, rotation_about_z(np.radians(30)))
+    assert _yaw_deg(upright_rotation(crate, crisp, [wall])) == pytest.approx(30.0, abs=1e-6)
+    # the same crisp normals on a footprint square to the wall (a shelf's boards whose
+    # front edges smear into ridges facing the camera): the footprint overrules them
+    assert aligned_share(crisp, rotation_about_z(0.0)) < aligned_share(
+        crisp, rotation_about_z(np.radians(30))) - WALL_SHARE_MARGIN
+    assert _yaw_deg(upright_rotation(pts, crisp)) == pytest.approx(30.0, abs=1e-6)
+    assert _yaw_deg(upright_rotation(pts, crisp, [wall])) == pytest.approx(0.0, abs=1e-9)
     # a wall turned 120 degrees gives yaw 30 (modulo 90); a tilted plane is no wall
     turned = Support("wall:2", (0.0, 0.0, 0.0), (np.cos(np.radians(120)), np.sin(np.radians(120)), 0))
     near = np.array([[0.01 * np.cos(np.radians(120)), 0.01 * np.sin(np.radians(120)), 1.0]])
