@@ -123,10 +123,13 @@ def yaw_rotation(a: float) -> np.ndarray:
 
 
 #: An object whose points come this close to a wall (1st percentile of their distances
-#: to its plane, metres: a wall shelf's board seen at 5 m ends a few centimetres off it)
-#: is turned square to that wall when that frame explains its surface normals within
-#: :data:`WALL_SHARE_MARGIN` (of :func:`aligned_share`) as well as its own.
-WALL_NEAR = 0.1
+#: to its plane, metres) is turned square to that wall when that frame explains its
+#: surface normals within :data:`WALL_SHARE_MARGIN` (of :func:`aligned_share`) as well as
+#: its own, or holds its points in a footprint no larger.  The sensor sees furniture
+#: from the front and its back is hidden: a bookcase or a desk against a wall shows
+#: points that end its depth, 25-30 cm, off the wall (a wall shelf's board seen at 5 m
+#: ends a few centimetres off it).
+WALL_NEAR = 0.3
 WALL_SHARE_MARGIN = 0.05
 
 

@@ -333,6 +333,18 @@ def test_an_object_near_a_wall_is_square_to_it_unless_its_faces_and_footprint_sa
         crisp, rotation_about_z(np.radians(30))) - WALL_SHARE_MARGIN
     assert _yaw_deg(upright_rotation(pts, crisp)) == pytest.approx(30.0, abs=1e-6)
     assert _yaw_deg(upright_rotation(pts, crisp, [wall])) == pytest.approx(0.0, abs=1e-9)
+    # a bookcase against the wall seen from the front: its points are its boards' front
+    # edges, ending its hidden depth (25 cm) off the wall, their normals ridges facing
+    # the camera at 40 degrees; it stands square to the wall
+    front = np.column_stack([rng.uniform(-0.4, 0.4, 1000), rng.uniform(0.25, 0.27, 1000),
+                             rng.uniform(0.0, 1.6, 1000)])
+    ridges = np.tile([np.cos(np.radians(40)), np.sin(np.radians(40)), 0.0], (1000, 1))
+    assert wall_yaw(front, [wall]) == pytest.approx(0.0)
+    assert _yaw_deg(upright_rotation(front, ridges)) == pytest.approx(40.0, abs=1e-6)
+    assert _yaw_deg(upright_rotation(front, ridges, [wall])) == pytest.approx(0.0, abs=1e-9)
+    # ... while a crate turned 30 degrees 20 cm from it keeps its turn
+    assert _yaw_deg(upright_rotation(crate + [0.0, 0.2, 0.0], crisp, [wall])) == pytest.approx(
+        30.0, abs=1e-6)
     # a wall turned 120 degrees gives yaw 30 (modulo 90); a tilted plane is no wall
     turned = Support("wall:2", (0.0, 0.0, 0.0), (np.cos(np.radians(120)), np.sin(np.radians(120)), 0))
     near = np.array([[0.01 * np.cos(np.radians(120)), 0.01 * np.sin(np.radians(120)), 1.0]])
