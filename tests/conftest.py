@@ -59,13 +59,13 @@ def slanted_clamp(phi_deg: float) -> Arrangement:
     R = rotation_about_axis(np.array([0.0, 1.0, 0.0]), np.radians(phi_deg))
     x, z = R[:, 0], R[:, 2]
     mid = np.array([0.0, 0.0, 0.7])
+    size = np.array([0.3, 0.4, 2.0])
+    lift = np.abs(R[2]) @ (size / 2)  # a jaw's centre height when its lowest edge is on the floor
     jaws = []
     for name, side in (("jaw0", -1.0), ("jaw1", 1.0)):
-        size = np.array([0.3, 0.4, 2.0])
         base = mid + side * (0.05 + 0.15) * x
         # slid along its own axis until its lowest edge is on the floor
-        t = (np.abs(R[2]) @ (size / 2) - base[2]) / R[2, 2]
-        jaws.append(Cuboid(name, base + t * z, R, size))
+        jaws.append(Cuboid(name, base + (lift - base[2]) / R[2, 2] * z, R, size))
     board = Cuboid("board", mid, R, np.array([0.1, 0.3, 0.4]))
     return Arrangement((*jaws, board), (ground(),),
                        (Contact("jaw0", "ground", "fixed"), Contact("jaw1", "ground", "fixed")))
