@@ -29,6 +29,9 @@ SLANT_MIN_DEG = 15.0
 MAX_VOXELS = 1_500_000
 #: A slab holding less than this fraction of its object's voxels or points is a speck.
 SPECK_FRACTION = 0.02
+#: A seen face's points spread along its normal (10th-90th percentile) by the noise, at
+#: most this many cells, unless they spread as much across it (:func:`_is_face`).
+FACE_SPREAD_CELLS = 3.0
 
 
 @dataclass(frozen=True)
@@ -174,9 +177,25 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
     return R
 
 
+def _is_face(on_face: np.ndarray, axis: int, cell: float | None) -> bool:
+    """Whether points facing along ``axis`` (``on_face``, (m, 3) in the box frame) lie on
+    one face across it.  A face is a plane: its points spread across it at least as much
+    as along its normal, where they spread only by the noise (:data:`FACE_SPREAD_CELLS`
+    cells).  Normals estimated on a strip a few pixels wide (a panel's front edge seen
+    from afar) point anywhere across the strip, and those that happen to point along its
+    length lie all along it: not a face."""
+    if cell is None:
+        return True
+    q10, q90 = np.percentile(on_face, [10.0, 90.0], axis=0)
+    spread = q90 - q10
+    across = max(spread[b] for b in range(3) if b != axis)
+    return bool(spread[axis] <= max(FACE_SPREAD_CELLS * cell, across))
+
+
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
                  min_face: int = 15, trim: float = 1.0,
-                 eye: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 eye: np.ndarray | None = None,
+                 cell: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Box extents (lo (3,), hi (3,)) in the box frame from noisy surface points.
 
     A face that was seen is placed at the median of its own points (points whose normal
@@ -190,6 +209,9 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
     for a sensor sees only the faces turned to it.  This holds for a box
     thinner than the noise, whose one seen face scatters across the box's middle.
     Without it, the half of the box the point lies in.
+
+    With ``cell`` (the voxel size, metres) a face's points must also lie on a plane
+    (:func:`_is_face`); otherwise that face counts as not seen.
     """
     lo = np.percentile(local, trim, axis=0)
     hi = np.percentile(local, 100.0 - trim, axis=0)
@@ -201,14 +223,13 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
     for a in range(3):
         on = np.abs(local_normals[:, a]) >= face_cos
         if eye is not None:
-            low, high = local[on & (local_normals[:, a] < 0), a], local[on & (local_normals[:, a] > 0), a]
+            sel_lo, sel_hi = on & (local_normals[:, a] < 0), on & (local_normals[:, a] > 0)
         else:
-            x = local[on, a]
-            low, high = x[x < mid[a]], x[x >= mid[a]]
-        if len(low) >= need:
-            lo[a] = float(np.median(low))
-        if len(high) >= need:
-            hi[a] = float(np.median(high))
+            sel_lo, sel_hi = on & (local[:, a] < mid[a]), on & (local[:, a] >= mid[a])
+        if sel_lo.sum() >= need and _is_face(local[sel_lo], a, cell):
+            lo[a] = float(np.median(local[sel_lo, a]))
+        if sel_hi.sum() >= need and _is_face(local[sel_hi], a, cell):
+            hi[a] = float(np.median(local[sel_hi, a]))
         if hi[a] < lo[a]:
             lo[a] = hi[a] = float(np.median(local[:, a]))
     return lo, hi
@@ -223,7 +244,7 @@ def fit_part(points: np.ndarray, normals: np.ndarray, cell: float, rotation: np.
         return []
     local = points @ rotation
     eye = None if viewpoint is None else np.asarray(viewpoint, float) @ rotation
-    lo, hi = face_extents(local, normals @ rotation, eye=eye)
+    lo, hi = face_extents(local, normals @ rotation, eye=eye, cell=cell)
     size = np.maximum(hi - lo, 0.5 * cell)
     return [FittedBox(rotation @ ((lo + hi) / 2), rotation.copy(), size, len(points))]
 
@@ -622,7 +643,7 @@ def fit_object(points: np.ndarray, cell: float, rng: np.random.Generator, *,
         local = points @ R
         if normals is not None:
             eye = None if viewpoint is None else np.asarray(viewpoint, float) @ R
-            lo, hi = face_extents(local, normals @ R, trim=0.5, eye=eye)
+            lo, hi = face_extents(local, normals @ R, trim=0.5, eye=eye, cell=cell)
         else:
             lo, hi = np.percentile(local, [0.5, 99.5], axis=0)
         size = np.maximum(hi - lo, cell)

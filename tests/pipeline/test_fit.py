@@ -273,6 +273,40 @@ def test_a_panel_thinner_than_the_noise_lies_behind_its_seen_face():
     assert blind.center[0] + blind.size[0] / 2 > s[0] / 2 + 0.5 * sigma
 
 
+def test_normals_that_point_along_a_strip_do_not_make_a_face_of_it():
+    """A panel's 16 mm front edge seen from 3 m: a strip 2 m tall and two pixels wide.
+    Normals estimated there (next to the boards and books it touches) point anywhere
+    across the strip; a few that point up or down lie all along it.  Taken for the top
+    and bottom faces, their medians (1.5 m and 0.5 m here) cut the part to a sliver; a
+    face is a plane, so points spread 1 m along their normal are none, and the part
+    keeps the extent of its points.  A real top face, spread across and not along its
+    normal, still sits at its median."""
+    rng = np.random.default_rng(8)
+    n = 900
+    pts = np.column_stack([rng.uniform(0.0, 0.016, n), rng.normal(0.0, 0.004, n),
+                           rng.uniform(0.0, 2.0, n)])
+    ang = rng.uniform(0.0, 2 * np.pi, n)
+    normals = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(n)])
+    up = rng.random(n) < 0.08
+    normals[up] = np.outer(rng.choice([-1.0, 1.0], up.sum()), [0.0, 0.0, 1.0])
+    # turned to the camera, those below its height face up, those above face down
+    eye = np.array([0.0, 3.0, 1.0])
+    lo_blind, hi_blind = face_extents(pts, normals, eye=eye)
+    assert hi_blind[2] - lo_blind[2] < 0.1  # the normals alone cut the strip to a sliver
+    lo, hi = face_extents(pts, normals, eye=eye, cell=0.0115)
+    assert lo[2] == pytest.approx(0.0, abs=0.05) and hi[2] == pytest.approx(2.0, abs=0.05)
+    # a board's top, seen from above: its points spread 0.6 m across and 1 cm along +z
+    top = np.column_stack([rng.uniform(0, 0.6, n), rng.uniform(0, 0.3, n),
+                           0.5 + rng.normal(0.0, 0.004, n)])
+    side = np.column_stack([rng.uniform(0, 0.6, n // 3), np.full(n // 3, 0.0),
+                            rng.uniform(0.48, 0.5, n // 3)])
+    board = np.vstack([top, side])
+    bn = np.vstack([np.tile([0.0, 0.0, 1.0], (n, 1)), np.tile([0.0, -1.0, 0.0], (n // 3, 1))])
+    lo, hi = face_extents(board, bn, eye=np.array([0.3, -1.0, 1.5]), cell=0.0115)
+    assert hi[2] == pytest.approx(0.5, abs=0.002)  # the median, not the noisy extreme
+    assert board[:, 2].max() > 0.5 + 0.008
+
+
 def test_a_tilted_box_keeps_its_slant_frame_and_a_small_noisy_box_stays_upright():
     rng = np.random.default_rng(11)
     # a box leaning at 35 degrees: the normals agree with the tilted planes
