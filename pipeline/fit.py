@@ -177,19 +177,28 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
     return R
 
 
-def _is_face(on_face: np.ndarray, axis: int, cell: float | None) -> bool:
-    """Whether points facing along ``axis`` (``on_face``, (m, 3) in the box frame) lie on
-    one face across it.  A face is a plane: its points spread across it at least as much
-    as along its normal, where they spread only by the noise (:data:`FACE_SPREAD_CELLS`
-    cells).  Normals estimated on a strip a few pixels wide (a panel's front edge seen
-    from afar) point anywhere across the strip, and those that happen to point along its
-    length lie all along it: not a face."""
+def _is_face(local: np.ndarray, on_face: np.ndarray, axis: int, side: int,
+             cell: float | None) -> bool:
+    """Whether the points ``local[on_face]`` ((n, 3), box frame), whose normals face along
+    ``side`` (+1 or -1) of ``axis``, are that face of the box.
+
+    A face is a plane that bounds the object: its points spread across it at least as
+    much as along its normal, where they spread only by the noise (at most
+    :data:`FACE_SPREAD_CELLS` cells), and most of the object's points lie inside it.
+    Normals estimated on a strip a few pixels wide (a panel's front edge seen from afar)
+    or next to another part point anywhere: those that happen to face along the strip lie
+    all along it, and a few that face sideways halfway along a board would cut it there.
+    """
     if cell is None:
         return True
-    q10, q90 = np.percentile(on_face, [10.0, 90.0], axis=0)
+    face = local[on_face]
+    q10, q50, q90 = np.percentile(face, [10.0, 50.0, 90.0], axis=0)
     spread = q90 - q10
     across = max(spread[b] for b in range(3) if b != axis)
-    return bool(spread[axis] <= max(FACE_SPREAD_CELLS * cell, across))
+    if spread[axis] > max(FACE_SPREAD_CELLS * cell, across):
+        return False
+    outside = side * (local[:, axis] - q50[axis]) > max(cell, spread[axis])
+    return bool(outside.mean() < 0.5)
 
 
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
@@ -210,8 +219,8 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
     thinner than the noise, whose one seen face scatters across the box's middle.
     Without it, the half of the box the point lies in.
 
-    With ``cell`` (the voxel size, metres) a face's points must also lie on a plane
-    (:func:`_is_face`); otherwise that face counts as not seen.
+    With ``cell`` (the voxel size, metres) a face's points must also lie on a plane that
+    bounds the points (:func:`_is_face`); otherwise that face counts as not seen.
     """
     lo = np.percentile(local, trim, axis=0)
     hi = np.percentile(local, 100.0 - trim, axis=0)
@@ -226,9 +235,9 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
             sel_lo, sel_hi = on & (local_normals[:, a] < 0), on & (local_normals[:, a] > 0)
         else:
             sel_lo, sel_hi = on & (local[:, a] < mid[a]), on & (local[:, a] >= mid[a])
-        if sel_lo.sum() >= need and _is_face(local[sel_lo], a, cell):
+        if sel_lo.sum() >= need and _is_face(local, sel_lo, a, -1, cell):
             lo[a] = float(np.median(local[sel_lo, a]))
-        if sel_hi.sum() >= need and _is_face(local[sel_hi], a, cell):
+        if sel_hi.sum() >= need and _is_face(local, sel_hi, a, 1, cell):
             hi[a] = float(np.median(local[sel_hi, a]))
         if hi[a] < lo[a]:
             lo[a] = hi[a] = float(np.median(local[:, a]))

@@ -307,6 +307,29 @@ def test_normals_that_point_along_a_strip_do_not_make_a_face_of_it():
     assert board[:, 2].max() > 0.5 + 0.008
 
 
+def test_a_face_with_most_of_the_points_outside_it_is_not_a_face():
+    """A shelf board 0.9 m long seen along its front edge: a few normals halfway along
+    it (where a book's side meets it) face along the board's length.  They lie on a
+    plane across the board, but most of the board's points lie outside that plane, so
+    it is not the board's end; the board keeps its length.  Its real top face, with
+    every point under it, still places the top."""
+    rng = np.random.default_rng(4)
+    n = 1200
+    pts = np.column_stack([rng.uniform(0.0, 0.2, n), rng.uniform(-0.45, 0.45, n),
+                           0.5 + rng.normal(0.0, 0.003, n)])
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    mid = np.abs(pts[:, 1] - 0.2) < 0.02  # the points beside a book's side, 0.2 m along
+    pts[mid, 1] = 0.2
+    normals[mid] = [0.0, -1.0, 0.0]  # facing -y, towards the camera at y = -2
+    assert mid.sum() >= 0.03 * n
+    eye = np.array([0.1, -2.0, 1.5])
+    lo_blind, _ = face_extents(pts, normals, eye=eye)
+    assert lo_blind[1] == pytest.approx(0.2, abs=0.01)  # normals alone cut it at the book
+    lo, hi = face_extents(pts, normals, eye=eye, cell=0.0115)
+    assert lo[1] == pytest.approx(-0.45, abs=0.02) and hi[1] == pytest.approx(0.45, abs=0.02)
+    assert hi[2] == pytest.approx(0.5, abs=0.002)
+
+
 def test_a_tilted_box_keeps_its_slant_frame_and_a_small_noisy_box_stays_upright():
     rng = np.random.default_rng(11)
     # a box leaning at 35 degrees: the normals agree with the tilted planes
