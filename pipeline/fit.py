@@ -30,7 +30,7 @@ MAX_VOXELS = 1_500_000
 #: A slab holding less than this fraction of its object's voxels or points is a speck.
 SPECK_FRACTION = 0.02
 #: A seen face's points spread along its normal (10th-90th percentile) by the noise, at
-#: most this many cells, unless they spread as much across it (:func:`_is_face`).
+#: most this many cells, unless they spread as much across it (:func:`_face_at`).
 FACE_SPREAD_CELLS = 3.0
 
 
@@ -177,28 +177,31 @@ def upright_rotation(points: np.ndarray, normals: np.ndarray | None = None,
     return R
 
 
-def _is_face(local: np.ndarray, on_face: np.ndarray, axis: int, side: int,
-             cell: float | None) -> bool:
-    """Whether the points ``local[on_face]`` ((n, 3), box frame), whose normals face along
-    ``side`` (+1 or -1) of ``axis``, are that face of the box.
+def _face_at(local: np.ndarray, on_face: np.ndarray, axis: int, side: int,
+             cell: float | None) -> float | None:
+    """Where along ``axis`` the points ``local[on_face]`` ((n, 3), box frame), whose
+    normals face along ``side`` (+1 or -1) of it, put that face of the box: their median,
+    or None where they are not a face.
 
-    A face is a plane that bounds the object: its points spread across it at least as
-    much as along its normal, where they spread only by the noise (at most
-    :data:`FACE_SPREAD_CELLS` cells), and most of the object's points lie inside it.
-    Normals estimated on a strip a few pixels wide (a panel's front edge seen from afar)
-    or next to another part point anywhere: those that happen to face along the strip lie
-    all along it, and a few that face sideways halfway along a board would cut it there.
+    With ``cell`` (metres) they must be one: a face is a plane that bounds the object,
+    its points spread across it at least as much as along its normal, where they spread
+    only by the noise (at most :data:`FACE_SPREAD_CELLS` cells), and most of the
+    object's points lie inside it.  Normals estimated on a strip a few pixels wide (a
+    panel's front edge seen from afar) or next to another part point anywhere: those
+    that happen to face along the strip lie all along it, and a few that face sideways
+    halfway along a board would cut it there.
     """
-    if cell is None:
-        return True
     face = local[on_face]
+    at = float(np.median(face[:, axis]))
+    if cell is None:
+        return at
     q10, q50, q90 = np.percentile(face, [10.0, 50.0, 90.0], axis=0)
     spread = q90 - q10
     across = max(spread[b] for b in range(3) if b != axis)
     if spread[axis] > max(FACE_SPREAD_CELLS * cell, across):
-        return False
+        return None
     outside = side * (local[:, axis] - q50[axis]) > max(cell, spread[axis])
-    return bool(outside.mean() < 0.5)
+    return at if outside.mean() < 0.5 else None
 
 
 def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: float = 0.85,
@@ -220,7 +223,7 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
     Without it, the half of the box the point lies in.
 
     With ``cell`` (the voxel size, metres) a face's points must also lie on a plane that
-    bounds the points (:func:`_is_face`); otherwise that face counts as not seen.
+    bounds the points (:func:`_face_at`); otherwise that face counts as not seen.
     """
     lo = np.percentile(local, trim, axis=0)
     hi = np.percentile(local, 100.0 - trim, axis=0)
@@ -235,10 +238,10 @@ def face_extents(local: np.ndarray, local_normals: np.ndarray, *, face_cos: floa
             sel_lo, sel_hi = on & (local_normals[:, a] < 0), on & (local_normals[:, a] > 0)
         else:
             sel_lo, sel_hi = on & (local[:, a] < mid[a]), on & (local[:, a] >= mid[a])
-        if sel_lo.sum() >= need and _is_face(local, sel_lo, a, -1, cell):
-            lo[a] = float(np.median(local[sel_lo, a]))
-        if sel_hi.sum() >= need and _is_face(local, sel_hi, a, 1, cell):
-            hi[a] = float(np.median(local[sel_hi, a]))
+        for sel, side, ends in ((sel_lo, -1, lo), (sel_hi, 1, hi)):
+            at = _face_at(local, sel, a, side, cell) if sel.sum() >= need else None
+            if at is not None:
+                ends[a] = at
         if hi[a] < lo[a]:
             lo[a] = hi[a] = float(np.median(local[:, a]))
     return lo, hi
