@@ -19,7 +19,12 @@ a part of its object, of an object another part of which stands within ``near_fl
 of the floor (the floor's plane takes a few centimetres of every object's points with
 it), whose bottom is more than ``floor_gap`` above the floor, reaches down to it
 (:func:`floor_reaches`: a desk's side panel, a sofa's back behind its seat).  Both only
-through space no view saw empty and where nothing is entered.
+through space no view saw empty and where nothing is entered.  What the sensor saw
+outranks a guess: a part stands on another only where what the sensor saw of that part
+lies under it, and a box whose guessed extent is in the way of the reach down gives way
+to it, cut back to the part's face, as long as the cut leaves all it was seen to fill
+(:func:`_give_way`: a sofa's back seen above its back cushions, whose seat and cushions
+an earlier guess had pushed back under it).
 """
 
 from __future__ import annotations
@@ -28,7 +33,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import extended, floor_height, near, overlap_face, same_object_groups, z_range
+from ..boxops import (
+    extended,
+    floor_height,
+    near,
+    overlap_face,
+    same_object_groups,
+    z_range,
+)
 from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
 from ..evidence import FREE_FRACTION_MAX, slab_samples
 from ..model import Arrangement, box_corners
@@ -167,8 +179,8 @@ def upright_parts(arr: Arrangement) -> dict[str, list]:
 def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     """Extensions down to a level floor of the upright parts, taller than wide, whose
     bottom lies more than ``gap`` above it, of objects another part of which stands
-    within ``near_floor`` of it, where no part of their object is under them; lowest
-    first."""
+    within ``near_floor`` of it, where no part of their object was seen under them;
+    lowest first."""
     from ..boxops import horizontal_axes, overlap_across, up_axis
     from ..extend import Extension
 
@@ -185,7 +197,8 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
                     or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
                 continue
             bottom = z_range(c)[0]
-            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, q, _UP) for q in mates):
+            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, _as_seen(q), _UP)
+                   for q in mates):
                 continue  # it stands on a part of its object (a chair's back on its seat)
             drop = bottom - floor
             if drop > gap:
@@ -194,20 +207,59 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
 
 
+def _as_seen(c):
+    """Box ``c`` as the sensor saw it (its observed box; ``c`` itself when unknown)."""
+    o = c.observed
+    return c if o is None else c.with_(center=o.center, size=o.size)
+
+
+def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
+    """``geom`` with the boxes that box ``k`` enters cut back to its face where only
+    their imagined extent is in the way (the sensor saw none of them there), or None
+    when a cut would reach into what the sensor saw of one, the floor or a wall."""
+    c = geom.cuboids[k]
+    cubs = list(geom.cuboids)
+    local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
+    for a, b, _ in find_contacts(local).penetrations:
+        if c.id not in (a, b):
+            continue
+        j = geom.index.get(b if a == c.id else a)
+        if j is None:
+            return None  # into the floor or a wall
+        q = cubs[j]
+        face = overlap_face(q, c, sideways=True)
+        if face is None:
+            return None
+        depth, axis, side = face
+        u = q.rotation[:, axis] * (1.0 if side else -1.0)
+        cut = float(q.center @ u) + float(q.size[axis]) / 2 - depth
+        seen = _as_seen(q)
+        if cut < float(seen.center @ u) + float(seen.size[axis]) / 2 - 1e-6:
+            return None
+        size = q.size.copy()
+        size[axis] -= depth
+        cubs[j] = q.with_(center=q.center - u * depth / 2, size=size)
+    return geom.with_(cuboids=tuple(cubs))
+
+
 def _down_to_floor(arr: Arrangement, evidence, p: Params):
     """Each of :func:`floor_reaches` proposed where no view saw the space empty and the
-    grown part enters nothing."""
+    grown part enters nothing once the guessed extents in its way gave way."""
     from ..extend import apply_offsets, offsets_of
 
     for k, x in floor_reaches(arr, p.floor_gap, p.near_floor):
         if _seen_through(arr, [x], evidence):
             continue
         geom = apply_offsets(arr, offsets_of([x], len(arr.cuboids)))
-        local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
         cid = arr.cuboids[k].id
+        geom = _give_way(geom, k)
+        if geom is None:
+            continue
+        local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
         if any(cid in (a, b) for a, b, _ in find_contacts(local).penetrations):
             continue
-        v = yield Edit((geom.cuboids[k],), f"{cid}, a part of {arr.cuboids[k].object}, "
+        changed = [c for c, before in zip(geom.cuboids, arr.cuboids) if c is not before]
+        v = yield Edit(tuple(changed), f"{cid}, a part of {arr.cuboids[k].object}, "
                                            f"reaches the floor {1000 * x.length:.0f} mm down "
                                            f"through space no view saw")
         if v.ok:

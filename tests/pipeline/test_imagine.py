@@ -1312,6 +1312,46 @@ def test_a_part_whose_lower_end_was_hidden_reaches_the_floor():
     assert ids == []
 
 
+def test_a_back_seen_above_its_cushions_reaches_the_floor_through_what_was_only_imagined():
+    """A sofa's back seen only above its back cushions (its lower end hidden behind them
+    and the seat) reaches the floor, and the seat, which a guess had pushed back under
+    it (only its front face was seen), is cut back to the back's front face.  Where the
+    seat was seen reaching under the back, the back stands on it; where the view saw the
+    space under the back empty, it hangs; and where it would cut into what was seen of a
+    box (a cushion seen reaching under it), it stays as it is."""
+    back = box("back", (0.0, 0.35, 0.45), (1.6, 0.1, 0.9), object="sofa")
+    seat = box("seat", (0.0, -0.05, 0.15), (1.6, 0.7, 0.3), object="sofa")
+    cushion = box("cushion", (0.0, 0.2, 0.5), (1.6, 0.2, 0.4), object="cushion")
+    view = _shelf_view([back, seat, cushion])
+    lost = _observed(back.with_(center=np.array([0.0, 0.35, 0.8]),
+                                size=np.array([1.6, 0.1, 0.2])))
+    # the seat as fitted: its front face seen, pushed back to the back's far face
+    pushed = seat.with_(center=np.array([0.0, 0.0, 0.15]), size=np.array([1.6, 0.8, 0.3]),
+                        observed=ObservedBox(np.array([0.0, -0.38, 0.15]),
+                                             np.array([1.6, 0.04, 0.3])))
+    seen_cushion = _observed(cushion)
+    arr = Arrangement((lost, pushed, seen_cushion), (ground(),))
+    out, ids = changed("join_parts", arr, view)
+    assert ids == ["back", "seat"]
+    assert_box(out.cuboid("back"), back.size, back.center)
+    assert_box(out.cuboid("seat"), seat.size, seat.center)  # rear face at the back's front
+    assert out.cuboid("cushion") is seen_cushion
+    assert ("back", "ground") in find_contacts(out).pairs
+    # the seat seen reaching under the back: the back stands on it
+    seen_seat = _observed(pushed)
+    out, ids = changed("join_parts", Arrangement((lost, seen_seat, seen_cushion), (ground(),)),
+                       view)
+    assert ids == []
+    # the view saw the space under the back empty: it hangs there
+    out, ids = changed("join_parts", arr, _shelf_view([lost, seat]))
+    assert ids == []
+    # the cushion seen reaching 2 cm under the back: the reach would cut into it
+    deep = _observed(cushion.with_(center=np.array([0.0, 0.21, 0.5]),
+                                   size=np.array([1.6, 0.22, 0.4])))
+    out, ids = changed("join_parts", Arrangement((lost, pushed, deep), (ground(),)), view)
+    assert ids == []
+
+
 def _sofa_corner(cushion_gap: float, yaw_deg: float, deepened_back: bool = False):
     """A sofa's back, seat and right arm (one object, fused) and a cushion on the seat
     turned ``yaw_deg`` off the back, its rear corner nearest the back ``cushion_gap``
