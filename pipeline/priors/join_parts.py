@@ -33,14 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import (
-    extended,
-    floor_height,
-    near,
-    overlap_face,
-    same_object_groups,
-    z_range,
-)
+from ..boxops import extended, floor_height, near, overlap_face, same_object_groups, z_range
 from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
 from ..evidence import FREE_FRACTION_MAX, slab_samples
 from ..model import Arrangement, box_corners
