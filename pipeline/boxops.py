@@ -322,6 +322,12 @@ def broad_face(c: Cuboid, u: np.ndarray) -> bool:
     return float(np.prod(np.delete(c.size, axis))) >= BROAD_FACE_AREA
 
 
+def as_seen(c: Cuboid) -> Cuboid:
+    """Box ``c`` as the sensor saw it: its observed box (``c`` itself when unknown)."""
+    o = c.observed
+    return c if o is None else c.with_(center=o.center, size=o.size)
+
+
 def face_seen(c: Cuboid, u: np.ndarray) -> bool:
     """Whether the face of ``c`` whose outward normal is nearest the unit vector ``u`` is
     where the sensor saw it (its observed box's face, within :data:`SEEN_FACE_TOL`)."""

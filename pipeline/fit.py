@@ -195,12 +195,12 @@ def _face_at(local: np.ndarray, on_face: np.ndarray, axis: int, side: int,
     at = float(np.median(face[:, axis]))
     if cell is None:
         return at
-    q10, q50, q90 = np.percentile(face, [10.0, 50.0, 90.0], axis=0)
+    q10, q90 = np.percentile(face, [10.0, 90.0], axis=0)
     spread = q90 - q10
     across = max(spread[b] for b in range(3) if b != axis)
     if spread[axis] > max(FACE_SPREAD_CELLS * cell, across):
         return None
-    outside = side * (local[:, axis] - q50[axis]) > max(cell, spread[axis])
+    outside = side * (local[:, axis] - at) > max(cell, spread[axis])
     return at if outside.mean() < 0.5 else None
 
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import fixed_components, horizontal_axes, is_upright, pushed
+from ..boxops import as_seen, fixed_components, horizontal_axes, is_upright, pushed
 from ..errors import InputError
 from ..stability import load_carrying
 from .base import Edit, Prior, principle_of
@@ -91,8 +91,7 @@ def _push(arr, load_ids, wall, sup, p: Params):
     ax, side, u = best
     face = float(sup.center @ u) + float(sup.size[ax]) / 2
     loads = [arr.cuboids[arr.index[m]] for m in load_ids]
-    seen = [c if c.observed is None else c.with_(center=c.observed.center, size=c.observed.size)
-            for c in loads]  # as the sensor saw them
+    seen = [as_seen(c) for c in loads]
     want = max(float(np.max(c.corners() @ u)) for c in seen) - face
     # the pushed face's corners stay in front of the wall
     corners = sup.corners()

@@ -33,10 +33,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import extended, floor_height, near, overlap_face, same_object_groups, z_range
+from ..boxops import (
+    as_seen,
+    extended,
+    extent_along,
+    floor_height,
+    near,
+    overlap_face,
+    pushed,
+    same_object_groups,
+    z_range,
+)
 from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
 from ..evidence import FREE_FRACTION_MAX, slab_samples
-from ..model import Arrangement, box_corners
+from ..model import Arrangement, Cuboid, box_corners
 from .base import Edit, Prior, principle_of
 
 #: The vertical.
@@ -119,18 +129,14 @@ def apply(arr, evidence, p: Params, ctx):
                 if r.object is not None and r.object == cubs[other].object:
                     ok = False
                     break
-                face = overlap_face(r, cubs[other])
-                if face is None:
+                cut = _cut_back(r, cubs[other])
+                if cut is None:
                     continue
-                depth, axis, side = face
+                depth, axis, _side, cubs[k] = cut
                 if depth > min(max(p.trim_abs, p.trim_rel * float(r.size[axis])),
                                p.trim_max_share * float(r.size[axis])):
                     ok = False  # (2 cm of a 12 mm book would leave a negative size)
                     break
-                u = r.rotation[:, axis] * (1.0 if side else -1.0)
-                size = r.size.copy()
-                size[axis] -= depth
-                cubs[k] = r.with_(center=r.center - u * depth / 2, size=size)
             if not ok:
                 continue
             trial = arr.with_(cuboids=tuple(cubs))
@@ -190,7 +196,7 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
                     or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
                 continue
             bottom = z_range(c)[0]
-            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, _as_seen(q), _UP)
+            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, as_seen(q), _UP)
                    for q in mates):
                 continue  # it stands on a part of its object (a chair's back on its seat)
             drop = bottom - floor
@@ -200,10 +206,15 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
 
 
-def _as_seen(c):
-    """Box ``c`` as the sensor saw it (its observed box; ``c`` itself when unknown)."""
-    o = c.observed
-    return c if o is None else c.with_(center=o.center, size=o.size)
+def _cut_back(r: Cuboid, into: Cuboid, sideways: bool = False):
+    """``(depth, axis, side, box)``: box ``r`` with its face (``axis``, ``side``) that
+    reaches least far into the box ``into`` (``sideways``: of its upright faces) moved
+    back by that ``depth``; None when no face of it does."""
+    face = overlap_face(r, into, sideways=sideways)
+    if face is None:
+        return None
+    depth, axis, side = face
+    return depth, axis, side, pushed(r, axis, side, -depth)
 
 
 def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
@@ -220,18 +231,13 @@ def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
         if j is None:
             return None  # into the floor or a wall
         q = cubs[j]
-        face = overlap_face(q, c, sideways=True)
-        if face is None:
+        cut = _cut_back(q, c, sideways=True)
+        if cut is None:
             return None
-        depth, axis, side = face
+        _depth, axis, side, cubs[j] = cut
         u = q.rotation[:, axis] * (1.0 if side else -1.0)
-        cut = float(q.center @ u) + float(q.size[axis]) / 2 - depth
-        seen = _as_seen(q)
-        if cut < float(seen.center @ u) + float(seen.size[axis]) / 2 - 1e-6:
-            return None
-        size = q.size.copy()
-        size[axis] -= depth
-        cubs[j] = q.with_(center=q.center - u * depth / 2, size=size)
+        if extent_along(as_seen(q), u)[1] > extent_along(cubs[j], u)[1] + 1e-6:
+            return None  # the cut reaches into what the sensor saw of it
     return geom.with_(cuboids=tuple(cubs))
 
 
