@@ -49,9 +49,13 @@ into a monitor's.  The kinds are therefore compared by ``S - lambda ln(max k / m
 ``k`` the factors by which the placement scales the model's three axes and ``lambda`` =
 :data:`STRETCH_COST` of score per factor of e between the most and the least stretched
 axis (0 for ``fit="uniform"``, which keeps proportions; a model of the object's own
-proportions pays nothing, whatever its size).  Within a kind the paper's score alone
-picks the model: the variants of one kind differ in their parts, which ``S`` sees, and
-not in their proportions.  ``RetrieveConfig(stretch_cost=0)`` is the paper's score alone.
+proportions pays nothing, whatever its size).  A kind enters that comparison with its
+best model by this measure, not with the model the paper's score prefers: a plank
+squeezed into a cube's box fills it exactly, and must not stand for its kind when an
+L of the cube's proportions, one quarter short, is in the repository too.  Within the
+kind that wins, the paper's score alone picks the model: the variants of one kind differ
+in their parts, which ``S`` sees, and not in their proportions.
+``RetrieveConfig(stretch_cost=0)`` is the paper's score alone.
 """
 
 from __future__ import annotations
@@ -490,7 +494,8 @@ class RetrieveConfig:
     icp : bool
         Refine with ICP against the observed points (when given).
     refine_per_kind : int
-        How many of each kind's best models (by coarse score) are refined.
+        How many of each kind's best models (by coarse score) are refined; its best by
+        coarse score less the stretch cost is refined too.
     kinds : tuple of str or None
         Only models of these kinds (the paper's keyword search); None: all.
     seed : int
@@ -641,7 +646,9 @@ def retrieve_object(name: str, cuboids, models: tuple[RepoModel, ...],
     refined: list[Candidate] = []
     for kind in dict.fromkeys(models[i].kind for i in idx):
         ranked = sorted((i for i in idx if models[i].kind == kind), key=lambda i: -coarse[i])
-        for i in ranked[:max(1, config.refine_per_kind)]:
+        # the kind's best by the paper's score, and its best as kinds are compared
+        fair = max(ranked, key=lambda i: coarse[i] - config.stretch_cost * best_pose[i][4])
+        for i in list(dict.fromkeys(ranked[:max(1, config.refine_per_kind)] + [fair])):
             M, a, b, yaw, k = best_pose[i]
             icp = None
             f = 0.0
@@ -664,9 +671,10 @@ def retrieve_object(name: str, cuboids, models: tuple[RepoModel, ...],
                                      yaw, icp, f if pts is not None else None, k,
                                      config.stretch_cost * k))
         per_kind[kind] = max((c for c in refined if c.kind == kind), key=lambda c: c.score)
+    # the kind by its least stretched fit, the model within it by the paper's score
     order = sorted(refined, key=lambda c: (-c.kind_score, c.model))
-    best = order[0]
-    runner = order[1] if len(order) > 1 else None
+    best = per_kind[order[0].kind]
+    runner = next((c for c in order if c is not best), None)
     return ObjectRetrieval(name, tuple(c.id for c in cuboids), best, runner, per_kind, coarse,
                            0 if pts is None else len(pts))
 

@@ -142,6 +142,25 @@ def test_kinds_are_compared_less_their_stretch_and_variants_by_the_score_alone()
     assert r.best.score == pytest.approx(2.0, abs=0.01) and r.coarse[1] < r.coarse[0] - 0.2
 
 
+def test_a_kind_is_compared_by_its_least_stretched_good_fit_not_its_best_scoring_model() -> None:
+    # the object: a cube.  Kind "a" has a plank (fills the cube exactly once squeezed:
+    # S = 2, stretch ln 10) and an L of the cube's own proportions (S = 1 + 3/4, no
+    # stretch); kind "b" has a block twice as long (S = 2, stretch ln 2).
+    cube = [((0, 0, 0.25), (0.5, 0.5, 0.5))]
+    ell = [((0, -0.125, 0.25), (0.5, 0.25, 0.5)), ((-0.125, 0.125, 0.25), (0.25, 0.25, 0.5))]
+    models = (make_model(*_mesh([((0, 0, 0.1), (2.0, 0.5, 0.2))]), "a", file="plank"),
+              make_model(*_mesh(ell), "a", file="ell"),
+              make_model(*_mesh([((0, 0, 0.25), (1.0, 0.5, 0.5))]), "b", file="long"))
+    r = retrieve_object("o", _cuboids(cube, 0.3), models, config=RetrieveConfig())
+    ell_fit = next(c for c in (r.best, r.runner_up) if c.file == "ell")
+    assert ell_fit.score == pytest.approx(1.75, abs=0.05) and ell_fit.stretch == pytest.approx(0.0, abs=1e-9)
+    # "a" wins on the L (1.75 > 2 - 0.5 ln 2 = 1.65 of "b"; its plank alone gives 2 - 0.5 ln 10 = 0.85) ...
+    assert r.best.kind == "a" and ell_fit.kind_score > 2.0 - STRETCH_COST * np.log(2.0) + 0.05
+    # ... and within "a" the paper's score still picks the model: the plank
+    assert r.best.file == "plank" and r.best.score == pytest.approx(2.0, abs=0.01)
+    assert r.per_kind["b"].file == "long" and r.per_kind["b"].stretch == pytest.approx(np.log(2.0), rel=1e-6)
+
+
 def test_kind_filter_is_a_keyword_search() -> None:
     models = (make_model(*_mesh(TABLE), "table"), make_model(*_mesh(CHAIR), "chair"))
     r = retrieve_object("o", _cuboids(CHAIR), models, config=RetrieveConfig(kinds=("table",)))
