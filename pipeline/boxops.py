@@ -103,13 +103,15 @@ def same_axes(a: Cuboid, b: Cuboid, cos_tol: float = np.cos(np.radians(5))) -> b
 
 
 # ------------------------------------------------------------------ face edits
+def face_normal(c: Cuboid, axis: int, side: int) -> np.ndarray:
+    """The outward unit normal of ``c``'s face on ``axis`` (``side`` 1: the + face)."""
+    return c.rotation[:, axis] * (1.0 if side else -1.0)
+
+
 def pushed(c: Cuboid, axis: int, side: int, length: float) -> Cuboid:
     """``c`` with its face on ``axis`` (``side`` 1: the + face) pushed out by ``length``
     (negative: pulled in), the opposite face fixed."""
-    u = c.rotation[:, axis] * (1.0 if side else -1.0)
-    size = c.size.copy()
-    size[axis] += length
-    return c.with_(center=c.center + u * length / 2, size=size)
+    return pushed_along(c, axis, face_normal(c, axis, side), length)
 
 
 def pushed_along(c: Cuboid, axis: int, u: np.ndarray, length: float) -> Cuboid:

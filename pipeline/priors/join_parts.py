@@ -35,8 +35,10 @@ import numpy as np
 
 from ..boxops import (
     as_seen,
+    changed_boxes,
     extended,
     extent_along,
+    face_normal,
     floor_height,
     near,
     overlap_face,
@@ -115,9 +117,8 @@ def apply(arr, evidence, p: Params, ctx):
             geom = apply_offsets(arr, offsets_of(list(o.extensions), K))
             cubs = list(geom.cuboids)
             near_ = near(geom, grown)  # only boxes near the grown ones can be entered
-            local = geom.with_(cuboids=tuple(cubs[n] for n in near_))
             ok = True
-            for pp, q, _depth in find_contacts(local).penetrations:
+            for pp, q, _depth in _penetrations(geom, near_):
                 kp, kq = geom.index.get(pp), geom.index.get(q)
                 if kp is None or kq is None or (kp in grown and kq in grown):
                     ok = False  # into a support, or two grown boxes into each other
@@ -143,8 +144,7 @@ def apply(arr, evidence, p: Params, ctx):
             changed = {n for n, (c, before) in enumerate(zip(cubs, arr.cuboids))
                        if c is not before}
             names = {cubs[n].id for n in changed}
-            local = trial.with_(cuboids=tuple(cubs[n] for n in near_))
-            if any(pp in names or q in names for pp, q, _ in find_contacts(local).penetrations):
+            if any(pp in names or q in names for pp, q, _ in _penetrations(trial, near_)):
                 continue
             v = yield Edit(tuple(cubs[n] for n in sorted(changed)),
                            f"{arr.cuboids[a].id} and {arr.cuboids[b].id}, parts of one object, "
@@ -206,6 +206,11 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     return [(k, x) for _, k, x in sorted(out, key=lambda t: (t[0], t[1]))]
 
 
+def _penetrations(arr: Arrangement, idx) -> list:
+    """The penetrations among the boxes ``idx`` of ``arr`` (and the supports)."""
+    return find_contacts(arr.with_(cuboids=tuple(arr.cuboids[n] for n in idx))).penetrations
+
+
 def _cut_back(r: Cuboid, into: Cuboid, sideways: bool = False):
     """``(depth, axis, side, box)``: box ``r`` with its face (``axis``, ``side``) that
     reaches least far into the box ``into`` (``sideways``: of its upright faces) moved
@@ -223,8 +228,7 @@ def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
     when a cut would reach into what the sensor saw of one, the floor or a wall."""
     c = geom.cuboids[k]
     cubs = list(geom.cuboids)
-    local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
-    for a, b, _ in find_contacts(local).penetrations:
+    for a, b, _ in _penetrations(geom, near(geom, {k})):
         if c.id not in (a, b):
             continue
         j = geom.index.get(b if a == c.id else a)
@@ -235,7 +239,7 @@ def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
         if cut is None:
             return None
         _depth, axis, side, cubs[j] = cut
-        u = q.rotation[:, axis] * (1.0 if side else -1.0)
+        u = face_normal(q, axis, side)
         if extent_along(as_seen(q), u)[1] > extent_along(cubs[j], u)[1] + 1e-6:
             return None  # the cut reaches into what the sensor saw of it
     return geom.with_(cuboids=tuple(cubs))
@@ -254,13 +258,11 @@ def _down_to_floor(arr: Arrangement, evidence, p: Params):
         geom = _give_way(geom, k)
         if geom is None:
             continue
-        local = geom.with_(cuboids=tuple(geom.cuboids[n] for n in near(geom, {k})))
-        if any(cid in (a, b) for a, b, _ in find_contacts(local).penetrations):
+        if any(cid in (a, b) for a, b, _ in _penetrations(geom, near(geom, {k}))):
             continue
-        changed = [c for c, before in zip(geom.cuboids, arr.cuboids) if c is not before]
-        v = yield Edit(tuple(changed), f"{cid}, a part of {arr.cuboids[k].object}, "
-                                           f"reaches the floor {1000 * x.length:.0f} mm down "
-                                           f"through space no view saw")
+        v = yield Edit(changed_boxes(geom, arr),
+                       f"{cid}, a part of {arr.cuboids[k].object}, reaches the floor "
+                       f"{1000 * x.length:.0f} mm down through space no view saw")
         if v.ok:
             arr = v.arrangement
 
