@@ -58,6 +58,12 @@ above one another are as deep as each other, so the shallower one is pushed back
 deeper one's far face in the same way (a shelf's lower boards half hidden behind its
 books, its top board seen edge-on at eye height).
 
+Things come in copies: boxes resting side by side on one box, parallel (``twin_cos``),
+as tall as each other and as wide across the row (within ``twin_size_rel``), are as
+deep as each other, so the shallower one is pushed back to the deeper one's far face in
+the same way (``copies``; a sofa's seat cushions seen past their neighbour, their back
+halves hidden behind an arm or in their own shadow).
+
 What rests on a board lies on it whole: a board whose face away from the camera stops
 short by more than ``joined_min`` of the far face of a box resting on it (its bottom
 above the board's middle, within ``rest_gap`` of its top), or of any part of that box's
@@ -110,6 +116,7 @@ class Params:
     joined_min: float = 0.03  #: metres one part must stop short of the other
     twin_size_rel: float = 0.1  #: relative agreement of two twin boards' lengths
     twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
+    copies: bool = True  #: copies side by side on one box are as deep as each other
 
 
 def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
@@ -307,6 +314,45 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     return sorted(out, key=lambda t: -t[3])
 
 
+def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
+    """``(k, axis, u, length)``: box ``k``'s face on a horizontal ``axis`` towards ``u``
+    (away from the camera at ``eye``) would reach the far face of a copy of it (see the
+    module docstring: resting on the same box, parallel, as tall and as wide across
+    ``axis`` within ``p.twin_size_rel``, side by side) when pushed out by ``length``;
+    longest first."""
+    out = []
+    rest = {}
+    for q in arr.cuboids:
+        if not q.extra.get("hallucinated") and is_upright(q):
+            s = resting_on(arr, q, p.rest_gap)
+            if s is not None:
+                rest[q.id] = s.id
+    boxes = [(k, c) for k, c in enumerate(arr.cuboids) if c.id in rest]
+    for k, c in boxes:
+        hc = float(c.size[up_axis(c)])
+        for _, q in boxes:
+            if q is c or rest[q.id] != rest[c.id]:
+                continue
+            hq = float(q.size[up_axis(q)])
+            if abs(hc - hq) > p.twin_size_rel * max(hc, hq):
+                continue
+            for a in horizontal_axes(c):
+                ua = c.rotation[:, a]
+                qa = int(np.argmax(np.abs(q.rotation.T @ ua)))
+                if abs(float(q.rotation[:, qa] @ ua)) < p.twin_cos:
+                    continue
+                wc, wq = float(c.size[a]), float(q.size[qa])
+                if (abs(wc - wq) > p.twin_size_rel * max(wc, wq)
+                        or overlap_along(c, q, ua) > 0.5 * min(wc, wq)):
+                    continue  # not as wide, or one in front of the other
+                d = next(x for x in horizontal_axes(c) if x != a)
+                u = away_from(c, d, eye)
+                length = reach_past(c, q, u, p)
+                if length is not None:
+                    out.append((k, d, u, length))
+    return sorted(out, key=lambda t: -t[3])
+
+
 def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     """``(k, axis, u, length)``: board ``k``'s face on a horizontal ``axis`` towards ``u``
     (away from the camera at ``eye``) would reach the far face of what rests on it (a box
@@ -344,6 +390,9 @@ def apply(arr, evidence, p: Params, ctx):
                                 "joined side by side to a deeper part of its object")
     arr = yield from _pushed_to(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
                                 "as deep as a twin board of its object")
+    if p.copies:
+        arr = yield from _pushed_to(arr, evidence, p, copy_pushes(arr, evidence.eye, p),
+                                    "as deep as a copy of it beside it")
     yield from _pushed_to(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
                           "under all of what rests on it")
 

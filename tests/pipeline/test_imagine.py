@@ -380,6 +380,48 @@ def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     assert ids == []
 
 
+def test_a_cushion_half_hidden_is_as_deep_as_its_copy_beside_it():
+    """Two cushions of one size side by side on a seat, one fitted whole, the other as
+    its front half (not thin enough for the face-on rule, of another object than the
+    first): the half goes back to the whole one's back face, by the copy rule alone; not
+    where the view saw it is half as deep, not for a cushion of another width, and not
+    with the rule switched off."""
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    def view(truth):
+        intr = Intrinsics.kinect_v1()
+        T = look_at((1.5, -2.0, 1.4), (0.0, 0.0, 0.4))
+        return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+    seat = box("seat", (0.0, 0.0, 0.2), (1.6, 0.7, 0.4), object="sofa")
+    left = box("left", (-0.26, 0.0, 0.45), (0.5, 0.6, 0.1), object="cushion0")
+    right = box("right", (0.26, 0.0, 0.45), (0.5, 0.6, 0.1), object="cushion1")
+    half = box("right", (0.26, -0.15, 0.45), (0.5, 0.3, 0.1), object="cushion1")
+    arr = Arrangement((seat, left, half), (ground(),))
+    assert half.size[1] >= DEEPEN.thin_fraction * half.size[0]  # no face-on push
+    edits = [e for e in run("deepen", arr, view([seat, left, right]))[1].edits if e.accepted]
+    assert [e.reason.split(":")[0] for e in edits] == ["as deep as a copy of it beside it"]
+    out, ids = deepen_thin_boxes(arr, view([seat, left, right]))
+    assert ids == ["right"]
+    assert_box(out.cuboid("right"), right.size, right.center)
+    # really half as deep: the view saw the space behind it empty, all but the first
+    # step of the push (7.5 cm) that lies in the shadow the half casts on the seat
+    out, ids = deepen_thin_boxes(arr, view([seat, left, half]))
+    assert ids == ["right"]
+    assert out.cuboid("right").size[1] == pytest.approx(0.3 + 0.3 / DEEPEN.steps)
+    # a cushion a fifth narrower is no copy
+    narrow = half.with_(size=np.array([0.4, 0.3, 0.1]))
+    out, ids = deepen_thin_boxes(Arrangement((seat, left, narrow), (ground(),)),
+                                 view([seat, left, narrow.with_(size=np.array([0.4, 0.6, 0.1]),
+                                                                center=right.center)]))
+    assert ids == []
+    # switched off
+    out, report = run("deepen", arr, view([seat, left, right]),
+                      params={"deepen": {"copies": False}})
+    assert out.cuboid("right") is half
+
+
 def test_a_desk_top_seen_by_its_edge_reaches_under_the_monitor_on_it():
     """A desk's top and sides fitted as their 4 cm front edges (the camera at the top's
     height) under a monitor whose screen was seen further back: the top goes back under
