@@ -58,12 +58,6 @@ above one another are as deep as each other, so the shallower one is pushed back
 deeper one's far face in the same way (a shelf's lower boards half hidden behind its
 books, its top board seen edge-on at eye height).
 
-Furniture is built of boards, and no part of it is thinner than one: a box left
-thinner than ``min_thickness`` (a board, 18 mm) after the other rules, its depth the
-noise's spread about one seen face (a sofa's arm seen from outside, a panel whose joints
-say nothing), has its face away from the camera pushed back to that thickness in the
-same way.
-
 Things come in copies: boxes resting side by side on one box, parallel (``twin_cos``),
 as tall as each other and as wide across the row (within ``twin_size_rel``), are as
 deep as each other, so the shallower one is pushed back to the deeper one's far face in
@@ -122,7 +116,6 @@ class Params:
     joined_min: float = 0.03  #: metres one part must stop short of the other
     twin_size_rel: float = 0.1  #: relative agreement of two twin boards' lengths
     twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
-    min_thickness: float = 0.018  #: metres: no part is thinner than a board
     copies: bool = True  #: copies side by side on one box are as deep as each other
 
 
@@ -360,20 +353,6 @@ def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     return sorted(out, key=lambda t: -t[3])
 
 
-def thin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
-    """``(k, axis, u, length)``: box ``k``'s thinnest extent, below ``p.min_thickness``,
-    pushed out by ``length`` on its face away from the camera at ``eye`` reaches it."""
-    out = []
-    for k, c in enumerate(arr.cuboids):
-        if c.extra.get("hallucinated"):
-            continue
-        axis = int(np.argmin(c.size))
-        length = p.min_thickness - float(c.size[axis])
-        if length > 1e-4:
-            out.append((k, axis, away_from(c, axis, eye), length))
-    return out
-
-
 def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     """``(k, axis, u, length)``: board ``k``'s face on a horizontal ``axis`` towards ``u``
     (away from the camera at ``eye``) would reach the far face of what rests on it (a box
@@ -407,23 +386,21 @@ def apply(arr, evidence, p: Params, ctx):
     if not evidence:
         return
     arr = yield from _face_on(arr, evidence, p)
-    arr = yield from _pushed_to(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
+    arr = yield from pushed_back(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
                                 "joined side by side to a deeper part of its object")
-    arr = yield from _pushed_to(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
+    arr = yield from pushed_back(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
                                 "as deep as a twin board of its object")
     if p.copies:
-        arr = yield from _pushed_to(arr, evidence, p, copy_pushes(arr, evidence.eye, p),
+        arr = yield from pushed_back(arr, evidence, p, copy_pushes(arr, evidence.eye, p),
                                     "as deep as a copy of it beside it")
-    arr = yield from _pushed_to(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
-                                "under all of what rests on it")
-    if p.min_thickness > 0:
-        yield from _pushed_to(arr, evidence, p, thin_pushes(arr, evidence.eye, p),
-                              "thinner than a board")
+    yield from pushed_back(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
+                          "under all of what rests on it")
 
 
-def _pushed_to(arr, evidence, p: Params, pushes, why: str):
+def pushed_back(arr, evidence, p, pushes, why: str):
     """Each box of ``pushes`` (see :func:`joined_pushes`) pushed back as far as it goes
-    in ``p.steps`` (no view saw the added space empty, nothing entered)."""
+    in ``p.steps`` (any parameters with ``steps``: tried longest first; no view saw the
+    added space empty, nothing entered)."""
     from ..evidence import slab_samples
     from ..extend import Extension
 
