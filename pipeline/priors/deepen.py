@@ -387,14 +387,14 @@ def apply(arr, evidence, p: Params, ctx):
         return
     arr = yield from _face_on(arr, evidence, p)
     arr = yield from pushed_back(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
-                                "joined side by side to a deeper part of its object")
+                                 "joined side by side to a deeper part of its object")
     arr = yield from pushed_back(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
-                                "as deep as a twin board of its object")
+                                 "as deep as a twin board of its object")
     if p.copies:
         arr = yield from pushed_back(arr, evidence, p, copy_pushes(arr, evidence.eye, p),
-                                    "as deep as a copy of it beside it")
+                                     "as deep as a copy of it beside it")
     yield from pushed_back(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
-                          "under all of what rests on it")
+                           "under all of what rests on it")
 
 
 def pushed_back(arr, evidence, p, pushes, why: str):
