@@ -146,7 +146,7 @@ def overlap_face(c: Cuboid, other: Cuboid, by_share: bool = False,
         if ax == skip or (sideways and abs(c.rotation[2, ax]) > HORIZONTAL_COS):
             continue
         for side in (0, 1):
-            u = c.rotation[:, ax] * (1 if side else -1)
+            u = face_normal(c, ax, side)
             face = c.center @ u + c.size[ax] / 2
             proj = other.corners() @ u
             overlap = face - proj.min()  # how far c reaches into the other along u

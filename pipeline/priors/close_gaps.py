@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import broad_face, changed_boxes, face_seen, fixed_components
+from ..boxops import broad_face, changed_boxes, face_normal, face_seen, fixed_components
 from ..contacts import find_contacts, pair_tolerance, sat_separation
 from ..evidence import FREE_FRACTION_MAX, slab_samples
 from ..model import Arrangement, Contact, Cuboid, box_corners, is_support_id
@@ -96,7 +96,7 @@ def _facing_push(arr: Arrangement, k: int, other: Cuboid, max_len: float, p: Par
     faces = []
     for axis in range(3):
         for side in (0, 1):
-            u = c.rotation[:, axis] * (1.0 if side else -1.0)
+            u = face_normal(c, axis, side)
             if (float(u @ (other.center - c.center)) > 0.0
                     and np.max(np.abs(other.rotation.T @ u)) >= np.cos(np.radians(p.face_deg))
                     and face_seen(other, -u)):

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import box_samples, is_free, is_upright, up_axis, upright_extent
+from ..boxops import box_samples, face_normal, is_free, is_upright, up_axis, upright_extent
 from ..model import Arrangement, Cuboid
 from .base import Edit, Prior, principle_of
 
@@ -95,7 +95,7 @@ def _grown_to_seen_edge(arr: Arrangement, top: Cuboid, axis: int, side: int, evi
     behind the boxes in front of it)."""
     if not evidence:
         return None
-    u = top.rotation[:, axis] * (1.0 if side else -1.0)
+    u = face_normal(top, axis, side)
     steps = int(p.edge_max_rel * float(top.size[axis]) / p.edge_step)
     others = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id != top.id))
     for j in range(steps + 1):

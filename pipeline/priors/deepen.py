@@ -81,6 +81,7 @@ from ..boxops import (
     broad_face,
     changed_boxes,
     extent_along,
+    face_normal,
     horizontal_axes,
     is_upright,
     joined_reach,
@@ -314,6 +315,17 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     return sorted(out, key=lambda t: -t[3])
 
 
+def supports_of(arr: Arrangement, gap: float) -> dict[str, str]:
+    """Box id -> the id of the box it rests on (:func:`pipeline.boxops.resting_on`
+    within ``gap``), for the boxes resting on one."""
+    out = {}
+    for q in arr.cuboids:
+        s = resting_on(arr, q, gap)
+        if s is not None:
+            out[q.id] = s.id
+    return out
+
+
 def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     """``(k, axis, u, length)``: box ``k``'s face on a horizontal ``axis`` towards ``u``
     (away from the camera at ``eye``) would reach the far face of a copy of it (see the
@@ -321,13 +333,9 @@ def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     ``axis`` within ``p.twin_size_rel``, side by side) when pushed out by ``length``;
     longest first."""
     out = []
-    rest = {}
-    for q in arr.cuboids:
-        if not q.extra.get("hallucinated") and is_upright(q):
-            s = resting_on(arr, q, p.rest_gap)
-            if s is not None:
-                rest[q.id] = s.id
-    boxes = [(k, c) for k, c in enumerate(arr.cuboids) if c.id in rest]
+    rest = supports_of(arr, p.rest_gap)
+    boxes = [(k, c) for k, c in enumerate(arr.cuboids)
+             if c.id in rest and not c.extra.get("hallucinated") and is_upright(c)]
     for k, c in boxes:
         hc = float(c.size[up_axis(c)])
         for _, q in boxes:
@@ -360,11 +368,7 @@ def carried_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     every part of that box's object when it is another object than the board's) when
     pushed out by ``length``; longest first."""
     out = []
-    support = {}  # box id -> the box it rests on, found once for every board
-    for q in arr.cuboids:
-        s = resting_on(arr, q, p.rest_gap)
-        if s is not None:
-            support[q.id] = s.id
+    support = supports_of(arr, p.rest_gap)  # found once for every board
     for k, c in enumerate(arr.cuboids):
         if c.extra.get("hallucinated") or board_axes(c) is None:
             continue
@@ -443,7 +447,7 @@ def _face_on(arr, evidence, p: Params):
             if c.size[axis] >= p.thin_fraction * width:
                 continue
             side = 1 if along > 0 else 0  # the face away from the camera
-            u = c.rotation[:, axis] * (1.0 if side else -1.0)
+            u = face_normal(c, axis, side)
             panel = is_panel(arr, c, axis, p)
             # a panel's depth is what the parts joined to it say (a chair's back goes back
             # to the seat it stands on; a monitor's screen not to the foot under its neck)

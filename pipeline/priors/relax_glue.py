@@ -19,7 +19,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from ..boxops import horizontal_axes, touching_group
+from ..boxops import face_normal, horizontal_axes, touching_group
 from ..contacts import find_contacts
 from ..errors import InputError
 from ..evidence import slab_samples
@@ -55,7 +55,7 @@ def _growths(arr: Arrangement, ids: list[str], evidence, p: Params,
             if abs(c.rotation[2, axis]) > 0.5:  # the vertical axis: extensions do that
                 continue
             for side in (0, 1):
-                u = c.rotation[:, axis] * (1.0 if side else -1.0)
+                u = face_normal(c, axis, side)
                 face = float(c.center @ u + c.size[axis] / 2)
                 # fractions of this extent, and of the widest horizontal one (a slab seen
                 # edge-on, a pillar seen from the front, has almost no depth)

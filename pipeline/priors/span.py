@@ -29,6 +29,7 @@ import numpy as np
 
 from ..boxops import (
     extent_along,
+    face_normal,
     horizontal_axes,
     is_upright,
     overlap_along,
@@ -67,7 +68,7 @@ def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
     sub = arr.with_(cuboids=tuple(arr.cuboids[j] for j in mates))
     out = []
     for ax, side in [(a, s) for a in horizontal_axes(c) if a != thin for s in (0, 1)]:
-        u = c.rotation[:, ax] * (1.0 if side else -1.0)
+        u = face_normal(c, ax, side)
         w = c.rotation[:, next(a for a in horizontal_axes(c) if a != ax)]
         face = float(c.center @ u + c.size[ax] / 2)
         ends = [(float(q_lo) - face, float(q_hi) - face)
