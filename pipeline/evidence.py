@@ -67,9 +67,10 @@ def depth_noise(z: np.ndarray) -> np.ndarray:
     return 0.0012 + 0.0019 * (np.asarray(z) - 0.4) ** 2
 
 
-def slab_samples(arr, ext, n: int = 5) -> np.ndarray:
+def slab_samples(arr, ext, n: int = 5, start: float = 0.0) -> np.ndarray:
     """(m, 3) world points filling the slab that extension ``ext`` (box, axis, side,
-    length) adds to a cuboid of ``arr``, kept off its borders."""
+    length) adds to a cuboid of ``arr``, kept off its borders; with ``start``, only its
+    layer beyond ``start`` metres from the face."""
     c = arr.cuboids[ext.box]
     half = c.size / 2
     ts = (np.arange(n) + 0.5) / n
@@ -77,7 +78,7 @@ def slab_samples(arr, ext, n: int = 5) -> np.ndarray:
     for k in range(3):
         if k == ext.axis:
             sgn = 1.0 if ext.side else -1.0
-            grids.append(sgn * (half[k] + ext.length * (0.1 + 0.8 * ts)))
+            grids.append(sgn * (half[k] + start + (ext.length - start) * (0.1 + 0.8 * ts)))
         else:
             grids.append((ts * 2 - 1) * half[k] * 0.85)
     g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)

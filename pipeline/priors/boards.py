@@ -27,6 +27,7 @@ class Params:
     min_thickness: float = 0.018  #: metres: no part is thinner than a board
     min_push: float = 0.001  #: metres: a shorter push is not proposed
     steps: int = 4  #: increments of the push, tried longest first
+    layers: bool = True  #: no layer a push adds was seen empty (off: the added space as a whole)
 
 
 def thin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):

@@ -35,7 +35,11 @@ least ``thin_fraction`` as wide, whose depth is as unseen as the slab's; so a pi
 flat boxes seen from the front goes back box by box, while one box of the pile whose
 depth the view did see bounds the slivers on it.
 Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
-back), it goes as deep as it fits, to ``resolution``.
+back), it goes as deep as it fits, to ``resolution``.  "No view saw the added space
+empty" holds for every layer a push adds (each of its ``steps``), not for the added
+space on average (``layers``): a camera looking over a part's top sees the space
+behind it only from some distance back, and the part ends before that layer, however
+much of the space nearer its face its own shadow hides.  Every push below does the same.
 
 The parts a part is joined to say how deep it is too: furniture is joined face to face
 (a board's end against its side panel, a seat cushion's end against an arm), so where
@@ -118,6 +122,7 @@ class Params:
     twin_size_rel: float = 0.1  #: relative agreement of two twin boards' lengths
     twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
     copies: bool = True  #: copies side by side on one box are as deep as each other
+    layers: bool = True  #: no layer a push adds was seen empty (off: the added space as a whole)
 
 
 def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
@@ -401,11 +406,19 @@ def apply(arr, evidence, p: Params, ctx):
                            "under all of what rests on it")
 
 
+def layer_seen_empty(evidence, arr, ext, start: float, p: Params) -> bool:
+    """Whether a view saw the layer of extension ``ext`` beyond ``start`` metres from the
+    face empty (more than :data:`pipeline.evidence.FREE_FRACTION_MAX` of its samples); the
+    whole extension with ``p.layers`` off."""
+    from ..evidence import slab_samples
+
+    return evidence.seen_empty(slab_samples(arr, ext, start=start if p.layers else 0.0))
+
+
 def pushed_back(arr, evidence, p, pushes, why: str):
     """Each box of ``pushes`` (see :func:`joined_pushes`) pushed back as far as it goes
     in ``p.steps`` (any parameters with ``steps``: tried longest first; no view saw the
     added space empty, nothing entered)."""
-    from ..evidence import slab_samples
     from ..extend import Extension
 
     done: set[int] = set()
@@ -416,7 +429,9 @@ def pushed_back(arr, evidence, p, pushes, why: str):
         side = 1 if float(c.rotation[:, axis] @ u) > 0 else 0
         for j in range(p.steps, 0, -1):
             length = full * j / p.steps
-            if evidence.seen_empty(slab_samples(arr, Extension(k, axis, side, length))):
+            layers = [(full * (i - 1) / p.steps, full * i / p.steps) for i in range(1, j + 1)]
+            if any(layer_seen_empty(evidence, arr, Extension(k, axis, side, b), a, p)
+                   for a, b in (layers if p.layers else [(0.0, length)])):
                 continue
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
@@ -479,9 +494,9 @@ def _face_on(arr, evidence, p: Params):
             best, done = None, 0.0
             for j in range(1, p.steps + 1):
                 length = full * j / p.steps
-                from ..evidence import slab_samples
 
-                if evidence.seen_empty(slab_samples(arr, Extension(k, axis, side, length))):
+                if layer_seen_empty(evidence, arr, Extension(k, axis, side, length),
+                                    full * (j - 1) / p.steps, p):
                     break
                 trial = deeper(length)
                 if trial is None:

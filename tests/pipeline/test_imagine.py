@@ -516,9 +516,9 @@ def test_a_flat_slab_seen_by_its_edge_is_as_deep_as_what_it_rests_on():
     assert got.center[1] - got.size[1] / 2 == pytest.approx(-0.125, abs=1e-9)  # front kept
     # alone on the floor, nothing says how deep it is but its width: a square, as before
     alone = box("plank", (0.0, -0.095, 0.015), (1.4, 0.06, 0.03), object="plank")
-    out, ids = deepen_thin_boxes(Arrangement((alone,), (ground(),)),
-                                 _shelf_view([alone.with_(size=np.array([1.4, 1.4, 0.03]))]))
-    assert ids == ["plank"] and out.cuboid("plank").size[1] > 1.0
+    square = alone.with_(center=np.array([0.0, 0.575, 0.015]), size=np.array([1.4, 1.4, 0.03]))
+    out, ids = deepen_thin_boxes(Arrangement((alone,), (ground(),)), _shelf_view([square]))
+    assert ids == ["plank"] and out.cuboid("plank").size[1] == pytest.approx(1.4)
 
 
 def test_a_stack_of_slabs_seen_face_on_is_not_held_to_slivers_by_each_other():
@@ -647,6 +647,41 @@ def test_a_truly_thin_panel_seen_from_above_is_deepened_only_into_its_shadow():
     views = [DepthView(_depth_of_boxes([panel], T, intr), intr, T)]
     out, ids = deepen_thin_boxes(Arrangement((panel,), (ground(),)), views)
     assert ids == ["panel"] and out.cuboids[0].size[1] == pytest.approx(0.3)
+
+
+def test_a_push_stops_at_the_first_layer_a_view_saw_empty_however_much_is_hidden_before_it():
+    """Seen from 1.7 m up, the space behind a thin panel is in its shadow near it, while
+    the camera sees over its top further back.  Taken as a whole, the space a square
+    footprint adds is seen through in less than a tenth of it, so the push went all the
+    way; its last quarter alone is seen through in more than a tenth, so the push stops
+    before it (still going into the shadow)."""
+    from pipeline.camera import Intrinsics, invert, look_at, project, transform
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at((0.0, -2.0, 1.7), (0.0, 0.0, 0.35))
+    panel = box("panel", (0, 0.004, 0.35), (0.3, 0.008, 0.7))
+    depth = _depth_of_boxes([panel], T, intr)
+    views = [DepthView(depth, intr, T)]
+
+    def seen_through(y0, y1):  # share of the space behind the panel between y0 and y1
+        g = np.stack(np.meshgrid(np.linspace(-0.14, 0.14, 15), np.linspace(y0, y1, 15),
+                                 np.linspace(0.01, 0.69, 35), indexing="ij"), -1).reshape(-1, 3)
+        uv, z = project(transform(invert(T), g), intr)
+        u, v = np.round(uv).astype(int).T
+        return float(np.mean(depth[v, u] > z + 0.01))
+
+    whole, last = seen_through(0.008, 0.3), seen_through(0.008 + 0.75 * 0.292, 0.3)
+    assert whole < 0.1 < last  # the geometry the rule is about
+    arr = Arrangement((panel,), (ground(),))
+    out, _ = run("deepen", arr, views, params={"deepen": {"layers": False}})
+    assert out.cuboids[0].size[1] == pytest.approx(0.3)  # the whole: through
+    out, _ = run("deepen", arr, views)
+    assert 0.008 + 0.5 * 0.292 < out.cuboids[0].size[1] < 0.008 + 0.75 * 0.292 + 1e-9
+    # from 1.2 m up no layer is seen through: the whole square footprint
+    T = look_at((0.0, -2.0, 1.2), (0.0, 0.0, 0.35))
+    out, _ = run("deepen", arr, [DepthView(_depth_of_boxes([panel], T, intr), intr, T)])
+    assert out.cuboids[0].size[1] == pytest.approx(0.3)
 
 
 def test_align_boxes_sets_small_tilts_upright_and_parts_on_their_objects_yaw():
