@@ -59,9 +59,9 @@ rule says, not the length of the part beside it.
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
 their length) of the same length (within ``twin_size_rel``) and thickness (within a
 factor ``twin_thick_ratio``: a chair's back rail is no twin of its seat), parallel
-(``twin_cos``) and above one another are as deep as each other, so the shallower one is pushed back to the
-deeper one's far face in the same way (a shelf's lower boards half hidden behind its
-books, its top board seen edge-on at eye height).
+(``twin_cos``) and above one another are as deep as each other, so the shallower one is
+pushed back to the deeper one's far face in the same way (a shelf's lower boards half
+hidden behind its books, its top board seen edge-on at eye height).
 
 Things come in copies: boxes resting side by side on one box, parallel (``twin_cos``),
 as tall as each other and as wide across the row (within ``twin_size_rel``), are as
@@ -431,11 +431,14 @@ def pushed_back(arr, evidence, p, pushes, why: str):
             continue
         c = arr.cuboids[k]
         side = 1 if float(c.rotation[:, axis] @ u) > 0 else 0
-        for j in range(p.steps, 0, -1):
+        # with p.layers, as far as the first layer a view saw empty
+        reach = next((i - 1 for i in range(1, p.steps + 1) if p.layers and layer_seen_empty(
+            evidence, arr, Extension(k, axis, side, full * i / p.steps),
+            full * (i - 1) / p.steps, p)), p.steps)
+        for j in range(reach, 0, -1):
             length = full * j / p.steps
-            layers = [(full * (i - 1) / p.steps, full * i / p.steps) for i in range(1, j + 1)]
-            if any(layer_seen_empty(evidence, arr, Extension(k, axis, side, b), a, p)
-                   for a, b in (layers if p.layers else [(0.0, length)])):
+            if not p.layers and layer_seen_empty(evidence, arr, Extension(k, axis, side, length),
+                                                 0.0, p):
                 continue
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
