@@ -103,6 +103,7 @@ from ..boxops import (
     z_range,
 )
 from ..contacts import find_contacts
+from ..evidence import slab_samples
 from ..model import Arrangement, is_support_id
 from .base import Edit, Prior, principle_of
 
@@ -297,6 +298,11 @@ def board_axes(c) -> tuple[int, int] | None:
     return long, depth
 
 
+def alike(a: float, b: float, rel: float) -> bool:
+    """Whether two extents agree within ``rel`` of the larger one."""
+    return abs(a - b) <= rel * max(a, b)
+
+
 def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
     """``(k, axis, u, length)``: board ``k``'s face on its depth ``axis`` towards ``u``
     (away from the camera at ``eye``) would reach the far face of a twin board of its
@@ -311,7 +317,7 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 continue
             lc, lq = float(c.size[long]), float(q.size[qlong])
             hc, hq = float(c.size[up_axis(c)]), float(q.size[up_axis(q)])
-            if (abs(lc - lq) > p.twin_size_rel * max(lc, lq)
+            if (not alike(lc, lq, p.twin_size_rel)
                     or max(hc, hq) > p.twin_thick_ratio * min(hc, hq)
                     or abs(float(c.rotation[:, long] @ q.rotation[:, qlong])) < p.twin_cos):
                 continue
@@ -351,7 +357,7 @@ def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
             if q is c or rest[q.id] != rest[c.id]:
                 continue
             hq = float(q.size[up_axis(q)])
-            if abs(hc - hq) > p.twin_size_rel * max(hc, hq):
+            if not alike(hc, hq, p.twin_size_rel):
                 continue
             for a in horizontal_axes(c):
                 ua = c.rotation[:, a]
@@ -359,7 +365,7 @@ def copy_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
                 if abs(float(q.rotation[:, qa] @ ua)) < p.twin_cos:
                     continue
                 wc, wq = float(c.size[a]), float(q.size[qa])
-                if (abs(wc - wq) > p.twin_size_rel * max(wc, wq)
+                if (not alike(wc, wq, p.twin_size_rel)
                         or overlap_along(c, q, ua) > 0.5 * min(wc, wq)):
                     continue  # not as wide, or one in front of the other
                 d = next(x for x in horizontal_axes(c) if x != a)
@@ -410,15 +416,6 @@ def apply(arr, evidence, p: Params, ctx):
                            "under all of what rests on it")
 
 
-def layer_seen_empty(evidence, arr, ext, start: float, p: Params) -> bool:
-    """Whether a view saw the layer of extension ``ext`` beyond ``start`` metres from the
-    face empty (more than :data:`pipeline.evidence.FREE_FRACTION_MAX` of its samples); the
-    whole extension with ``p.layers`` off."""
-    from ..evidence import slab_samples
-
-    return evidence.seen_empty(slab_samples(arr, ext, start=start if p.layers else 0.0))
-
-
 def pushed_back(arr, evidence, p, pushes, why: str):
     """Each box of ``pushes`` (see :func:`joined_pushes`) pushed back as far as it goes
     in ``p.steps`` (any parameters with ``steps``: tried longest first; no view saw the
@@ -431,15 +428,16 @@ def pushed_back(arr, evidence, p, pushes, why: str):
             continue
         c = arr.cuboids[k]
         side = 1 if float(c.rotation[:, axis] @ u) > 0 else 0
-        # with p.layers, as far as the first layer a view saw empty
-        reach = next((i - 1 for i in range(1, p.steps + 1) if p.layers and layer_seen_empty(
-            evidence, arr, Extension(k, axis, side, full * i / p.steps),
-            full * (i - 1) / p.steps, p)), p.steps)
+        ends = [full * j / p.steps for j in range(p.steps + 1)]
+        exts = [Extension(k, axis, side, e) for e in ends]
+        reach = p.steps
+        if p.layers:  # as far as the first layer a view saw empty
+            reach = next((j - 1 for j in range(1, p.steps + 1) if evidence.seen_empty(
+                slab_samples(arr, exts[j], start=ends[j - 1]))), p.steps)
         for j in range(reach, 0, -1):
-            length = full * j / p.steps
-            if not p.layers and layer_seen_empty(evidence, arr, Extension(k, axis, side, length),
-                                                 0.0, p):
-                continue
+            length = ends[j]
+            if not p.layers and evidence.seen_empty(slab_samples(arr, exts[j])):
+                continue  # the added space as a whole seen empty
             trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
                 continue
@@ -502,8 +500,9 @@ def _face_on(arr, evidence, p: Params):
             for j in range(1, p.steps + 1):
                 length = full * j / p.steps
 
-                if layer_seen_empty(evidence, arr, Extension(k, axis, side, length),
-                                    full * (j - 1) / p.steps, p):
+                start = full * (j - 1) / p.steps if p.layers else 0.0  # its new layer
+                if evidence.seen_empty(slab_samples(arr, Extension(k, axis, side, length),
+                                                    start=start)):
                     break
                 trial = deeper(length)
                 if trial is None:
