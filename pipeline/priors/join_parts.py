@@ -18,7 +18,12 @@ need makes their hidden lower ends reach it: a part taller than wide, not standi
 a part of its object, of an object another part of which stands within ``near_floor``
 of the floor (the floor's plane takes a few centimetres of every object's points with
 it), whose bottom is more than ``floor_gap`` above the floor, reaches down to it
-(:func:`floor_reaches`: a desk's side panel, a sofa's back behind its seat).  Both only
+(:func:`floor_reaches`: a desk's side panel, a sofa's back behind its seat).  So does a
+flat part (``flat``) unless two parts of its object hold it at opposite ends, within
+``hold_gap`` (:func:`held_between`: a shelf's board between its side panels): furniture
+carries a board from below or between two sides, so a flat part held at one end only,
+with nothing of its object under it, is the top of a solid whose sides no view saw (a
+sofa's arm seen only by the far end of its top, over its back).  Both only
 through space no view saw empty and where nothing is entered.  What the sensor saw
 outranks a guess: a part stands on another only where what the sensor saw of that part
 lies under it, and a box whose guessed extent is in the way of the reach down gives way
@@ -63,6 +68,8 @@ class Params:
     trim_max_share: float = 0.5  #: ... but never more than this share of it
     floor_gap: float = 0.02  #: metres: a part further above the floor may reach down ...
     near_floor: float = 0.06  #: ... when another part of its object is this near it
+    flat: bool = True  #: flat parts reach down too, unless held at both ends ...
+    hold_gap: float = 0.03  #: ... by parts within this many metres of them
 
 
 def _seen_through(arr: Arrangement, extensions, evidence) -> bool:
@@ -175,11 +182,46 @@ def upright_parts(arr: Arrangement) -> dict[str, list]:
     return parts
 
 
-def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
-    """Extensions down to a level floor of the upright parts, taller than wide, whose
-    bottom lies more than ``gap`` above it, of objects another part of which stands
-    within ``near_floor`` of it, where no part of their object was seen under them;
-    lowest first."""
+def held_between(c: Cuboid, mates, tol: float) -> bool:
+    """Whether two of the boxes ``mates`` hold box ``c`` at opposite ends of one of its
+    horizontal axes: each level with it and beside it across that axis (within ``tol``
+    metres), one reaching from the middle of ``c`` to its end or beyond, the other the
+    same at the other end (a shelf's board between its side panels)."""
+    from ..boxops import horizontal_axes
+
+    hz = horizontal_axes(c)
+    zc = z_range(c)
+    for a in hz:
+        u = c.rotation[:, a]
+        lo, hi = extent_along(c, u)
+        mid = (lo + hi) / 2
+        others = [b for b in hz if b != a]
+        plus = minus = False
+        for q in mates:
+            zq = z_range(q)
+            if zq[0] > zc[1] + tol or zq[1] < zc[0] - tol:
+                continue
+            if others:
+                v = c.rotation[:, others[0]]
+                clo, chi = extent_along(c, v)
+                vlo, vhi = extent_along(q, v)
+                if vlo > chi + tol or vhi < clo - tol:
+                    continue
+            qlo, qhi = extent_along(q, u)
+            plus |= qlo >= mid and qlo <= hi + tol and qhi >= hi - tol
+            minus |= qhi <= mid and qhi >= lo - tol and qlo <= lo + tol
+        if plus and minus:
+            return True
+    return False
+
+
+def floor_reaches(arr: Arrangement, gap: float, near_floor: float, flat: bool = True,
+                  hold_gap: float = 0.03):
+    """Extensions down to a level floor of the upright parts, taller than wide (with
+    ``flat``, also flat ones no two parts of their object hold at opposite ends within
+    ``hold_gap``, :func:`held_between`), whose bottom lies more than ``gap`` above it, of
+    objects another part of which stands within ``near_floor`` of it, where no part of
+    their object was seen under them; lowest first."""
     from ..boxops import horizontal_axes, overlap_across, up_axis
     from ..extend import Extension
 
@@ -190,9 +232,10 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float):
     for parts in upright_parts(arr).values():
         for k, c in parts:
             mates = [q for j, q in parts if j != k]
+            is_flat = float(c.size[up_axis(c)]) < min(float(c.size[a])
+                                                     for a in horizontal_axes(c))
             if (not mates
-                    or float(c.size[up_axis(c)]) < min(float(c.size[a])
-                                                       for a in horizontal_axes(c))
+                    or (is_flat and (not flat or held_between(c, mates, hold_gap)))
                     or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
                 continue
             bottom = z_range(c)[0]
@@ -250,7 +293,8 @@ def _down_to_floor(arr: Arrangement, evidence, p: Params):
     grown part enters nothing once the guessed extents in its way gave way."""
     from ..extend import apply_offsets, offsets_of
 
-    for k, x in floor_reaches(arr, p.floor_gap, p.near_floor):
+    for k, x in floor_reaches(arr, p.floor_gap, p.near_floor, p.flat,
+                                 p.hold_gap):
         if _seen_through(arr, [x], evidence):
             continue
         geom = apply_offsets(arr, offsets_of([x], len(arr.cuboids)))

@@ -1430,6 +1430,62 @@ def test_a_part_whose_lower_end_was_hidden_reaches_the_floor():
     assert ids == []
 
 
+def _view_from(eye, truth, target=(0.0, 0.0, 0.4)):
+    from pipeline.camera import Intrinsics, look_at
+    from pipeline.evidence import DepthView
+
+    intr = Intrinsics.kinect_v1()
+    T = look_at(eye, target)
+    return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+
+def test_a_flat_part_held_at_one_end_only_reaches_the_floor_and_one_held_at_both_does_not():
+    """A sofa seen from behind and above: of its arm the camera saw only the far end of
+    the top (the back hides the rest), so the arm was fitted as a 2 cm slab whose one
+    end meets the back.  No view saw the space under it, nothing of the sofa was seen
+    under it, and furniture carries a flat part from below or between two sides, not
+    from one end: it reaches the floor.  A shelf's board between its two side panels
+    stays a board however hidden the space under it, and with ``flat`` off (the rule's
+    ablation) the arm stays a slab."""
+    back = box("back", (0.0, -0.5, 0.42), (2.0, 0.2, 0.84), object="sofa")
+    arm = box("arm", (0.89, -0.05, 0.3), (0.18, 0.7, 0.6), object="sofa")
+    view = _view_from((0.9, -2.0, 1.8), [back, arm])
+    # what the camera saw of the arm: its top, from y = 0 on (the back hides the rest)
+    from pipeline.evidence import visible_masks
+
+    top = np.array([[0.89, y, 0.6] for y in np.linspace(-0.39, 0.29, 35)])
+    free, hidden = visible_masks(top, view, 0.0)
+    seen_from = top[~hidden & ~free, 1].min()
+    assert 0.0 < seen_from < 0.2
+    under = np.array([[x, y, z] for x in (0.82, 0.89, 0.96) for y in np.linspace(-0.38, 0.28, 12)
+                      for z in np.linspace(0.02, 0.56, 10)])
+    free, _ = visible_masks(under, view, 0.0)
+    assert not free.any()  # no view saw into the space under the arm
+    slab = box("arm", (0.89, -0.05, 0.59), (0.18, 0.7, 0.02), object="sofa")
+    arr = Arrangement((_observed(back), slab), (ground(),))
+    out, ids = changed("join_parts", arr, view)
+    assert ids == ["arm"]
+    assert_box(out.cuboid("arm"), arm.size, arm.center)
+    assert ("arm", "ground") in find_contacts(out).pairs
+    out, ids = changed("join_parts", arr, view, params={"join_parts": {"flat": False}})
+    assert ids == [] and out.cuboid("arm") is slab
+    # a board between two side panels, the space under it hidden by a crate in front
+    left = box("left", (-0.5, 0.0, 0.4), (0.04, 0.4, 0.8), object="shelf")
+    right = box("right", (0.5, 0.0, 0.4), (0.04, 0.4, 0.8), object="shelf")
+    board = box("board", (0.0, 0.0, 0.79), (0.96, 0.4, 0.02), object="shelf")
+    crate = box("crate", (0.0, -0.3, 0.39), (1.2, 0.1, 0.78), object="crate")
+    view = _view_from((0.0, -2.0, 1.6), [left, right, board, crate])
+    thin = board.with_(center=np.array([0.0, 0.0, 0.797]), size=np.array([0.96, 0.4, 0.006]))
+    shelf = Arrangement((_observed(left), _observed(right), thin, _observed(crate)),
+                        (ground(),))
+    out, ids = changed("join_parts", shelf, view)
+    assert ids == []
+    # held by one panel only, the same board is a cantilever: it reaches the floor
+    one = Arrangement((_observed(left), thin, _observed(crate)), (ground(),))
+    out, ids = changed("join_parts", one, view)
+    assert ids == ["board"] and out.cuboid("board").size[2] == pytest.approx(0.8)
+
+
 def test_a_back_seen_above_its_cushions_reaches_the_floor_through_what_was_only_imagined():
     """A sofa's back seen only above its back cushions (its lower end hidden behind them
     and the seat) reaches the floor, and the seat, which a guess had pushed back under
