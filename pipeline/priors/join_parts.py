@@ -293,8 +293,7 @@ def _down_to_floor(arr: Arrangement, evidence, p: Params):
     grown part enters nothing once the guessed extents in its way gave way."""
     from ..extend import apply_offsets, offsets_of
 
-    for k, x in floor_reaches(arr, p.floor_gap, p.near_floor, p.flat,
-                                 p.hold_gap):
+    for k, x in floor_reaches(arr, p.floor_gap, p.near_floor, p.flat, p.hold_gap):
         if _seen_through(arr, [x], evidence):
             continue
         geom = apply_offsets(arr, offsets_of([x], len(arr.cuboids)))
