@@ -45,10 +45,15 @@ from ..boxops import (
     extent_along,
     face_normal,
     floor_height,
+    horizontal_axes,
+    is_upright,
     near,
+    overlap_across,
+    overlap_along,
     overlap_face,
     pushed,
     same_object_groups,
+    up_axis,
     z_range,
 )
 from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
@@ -173,8 +178,6 @@ def _end(c, ax: int, top: bool) -> int:
 
 def upright_parts(arr: Arrangement) -> dict[str, list]:
     """Object -> ``(index, box)`` of each of its upright parts."""
-    from ..boxops import is_upright
-
     parts: dict[str, list] = {}
     for k, c in enumerate(arr.cuboids):
         if c.object is not None and is_upright(c):
@@ -187,26 +190,17 @@ def held_between(c: Cuboid, mates, tol: float) -> bool:
     horizontal axes: each level with it and beside it across that axis (within ``tol``
     metres), one reaching from the middle of ``c`` to its end or beyond, the other the
     same at the other end (a shelf's board between its side panels)."""
-    from ..boxops import horizontal_axes
-
     hz = horizontal_axes(c)
-    zc = z_range(c)
     for a in hz:
         u = c.rotation[:, a]
         lo, hi = extent_along(c, u)
         mid = (lo + hi) / 2
-        others = [b for b in hz if b != a]
+        across = [c.rotation[:, b] for b in hz if b != a]
         plus = minus = False
         for q in mates:
-            zq = z_range(q)
-            if zq[0] > zc[1] + tol or zq[1] < zc[0] - tol:
-                continue
-            if others:
-                v = c.rotation[:, others[0]]
-                clo, chi = extent_along(c, v)
-                vlo, vhi = extent_along(q, v)
-                if vlo > chi + tol or vhi < clo - tol:
-                    continue
+            if (overlap_along(c, q, _UP) < -tol
+                    or any(overlap_along(c, q, v) < -tol for v in across)):
+                continue  # not level with it, or not beside it
             qlo, qhi = extent_along(q, u)
             plus |= qlo >= mid and qlo <= hi + tol and qhi >= hi - tol
             minus |= qhi <= mid and qhi >= lo - tol and qlo <= lo + tol
@@ -222,7 +216,6 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float, flat: bool = 
     ``hold_gap``, :func:`held_between`), whose bottom lies more than ``gap`` above it, of
     objects another part of which stands within ``near_floor`` of it, where no part of
     their object was seen under them; lowest first."""
-    from ..boxops import horizontal_axes, overlap_across, up_axis
     from ..extend import Extension
 
     floor = floor_height(arr)
@@ -235,8 +228,8 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float, flat: bool = 
             is_flat = float(c.size[up_axis(c)]) < min(float(c.size[a])
                                                      for a in horizontal_axes(c))
             if (not mates
-                    or (is_flat and (not flat or held_between(c, mates, hold_gap)))
-                    or not any(z_range(q)[0] - floor <= near_floor for q in mates)):
+                    or not any(z_range(q)[0] - floor <= near_floor for q in mates)
+                    or (is_flat and (not flat or held_between(c, mates, hold_gap)))):
                 continue
             bottom = z_range(c)[0]
             if any(z_range(q)[1] <= bottom + gap and overlap_across(c, as_seen(q), _UP)
@@ -321,7 +314,6 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     through space none of them saw empty.  Pairs in ``skip`` (touching, or joined by one
     short extension) are not tried.
     """
-    from ..boxops import horizontal_axes, up_axis
     from ..extend import Extension, Option
 
     out = []

@@ -262,13 +262,18 @@ def test_the_one_seen_panel_of_furniture_whose_other_parts_no_view_shows_keeps_i
     assert ids == [] and out.cuboids[0] is part
 
 
-def _shelf_view(truth):
+def _view_from(eye, truth, target=(0.0, 0.0, 0.4)):
+    """One exact Kinect depth view of the boxes ``truth`` from ``eye`` towards ``target``."""
     from pipeline.camera import Intrinsics, look_at
     from pipeline.evidence import DepthView
 
     intr = Intrinsics.kinect_v1()
-    T = look_at((0.9, -2.0, 1.1), (0.0, 0.0, 0.5))
+    T = look_at(eye, target)
     return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
+
+
+def _shelf_view(truth):
+    return _view_from((0.9, -2.0, 1.1), truth, (0.0, 0.0, 0.5))
 
 
 def test_a_side_panel_seen_by_its_front_edge_is_as_deep_as_the_board_it_holds():
@@ -679,8 +684,7 @@ def test_a_push_stops_at_the_first_layer_a_view_saw_empty_however_much_is_hidden
     out, _ = run("deepen", arr, views)
     assert 0.008 + 0.5 * 0.292 < out.cuboids[0].size[1] < 0.008 + 0.75 * 0.292 + 1e-9
     # from 1.2 m up no layer is seen through: the whole square footprint
-    T = look_at((0.0, -2.0, 1.2), (0.0, 0.0, 0.35))
-    out, _ = run("deepen", arr, [DepthView(_depth_of_boxes([panel], T, intr), intr, T)])
+    out, _ = run("deepen", arr, _view_from((0.0, -2.0, 1.2), [panel], (0.0, 0.0, 0.35)))
     assert out.cuboids[0].size[1] == pytest.approx(0.3)
 
 
@@ -1428,15 +1432,6 @@ def test_a_part_whose_lower_end_was_hidden_reaches_the_floor():
     out, ids = changed("join_parts", Arrangement((top, left, alone), (ground(),)),
                        _shelf_view([top, left, right]))
     assert ids == []
-
-
-def _view_from(eye, truth, target=(0.0, 0.0, 0.4)):
-    from pipeline.camera import Intrinsics, look_at
-    from pipeline.evidence import DepthView
-
-    intr = Intrinsics.kinect_v1()
-    T = look_at(eye, target)
-    return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
 
 
 def test_a_flat_part_held_at_one_end_only_reaches_the_floor_and_one_held_at_both_does_not():
