@@ -12,8 +12,9 @@
    samples), not by the share of samples seen through: that share also counts the
    mixed depths along a silhouette, and the slab between a box's bottom and the floor
    a few centimetres below is mostly silhouette.  Gravity is certain; a support the
-   view cannot rule out beats a box left hanging.  Boxes still not held get a post each
-   where the view allows one (the ``posts`` prior) and a third search.  Each search
+   view cannot rule out beats a box left hanging.  Boxes still not held reach over what
+   is under them (the ``reach`` prior) or get a post each (``posts``) where the view
+   allows, and a third search.  Each search
    again is kept only when fewer boxes fall.  Boxes still not held (their support was
    never seen) are set aside and the rest searched again (:data:`ISOLATE_ROUNDS`);
 3. the set-aside boxes come back, then the ``settle`` priors (loads leaning on walls
@@ -160,13 +161,14 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
                 after = tuple(result.unstable_ids) or fall
                 report.judged_whole = sorted(set(unheld) - set(after))
                 unheld = after
-    if unheld and config.enabled("posts"):
-        # ... and those still not held get a post each where the view allows one
+    if unheld and (config.enabled("reach") or config.enabled("posts")):
+        # ... and those still not held reach over what is under them, or get a post each,
+        # where the view allows
         n_edits, n_added = len(report.edits), len(report.added)
         posted = run_stage("complete", arr, evidence,
                            Context(mu=mu, threshold=threshold, deadline=t0 + budget,
-                                   unheld=unheld), config, report, only="posts")
-        if len(posted.cuboids) > len(arr.cuboids):
+                                   unheld=unheld), config, report, only=("reach", "posts"))
+        if posted is not arr:
             whole = frozenset(posted.index[b] for b in report.added[n_added:] + list(unheld)
                               if b in posted.index)
             wider, _ = prune_by_visibility(posted, candidate_edges(posted, eyes=eyes),
@@ -175,7 +177,7 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
             again = _search_again(posted, wider, len(fall), t0, config)
             if again is not None:
                 arr, edges, result = posted, wider, again[0]
-            else:  # the posts hold nothing: the result does not carry them
+            else:  # they hold nothing: the result does not carry them
                 del report.edits[n_edits:], report.added[n_added:]
     # boxes nothing can hold up (their support was never seen) are set aside and the rest
     # searched again: glue cannot save them, and gluing their whole group would only hide

@@ -20,6 +20,7 @@ from .mirror import PRIOR as _mirror
 from .object_yaw import PRIOR as _object_yaw
 from .overlaps import PRIOR as _overlaps
 from .posts import PRIOR as _posts
+from .reach import PRIOR as _reach
 from .relax_glue import PRIOR as _relax_glue
 from .rows import PRIOR as _rows
 from .span import PRIOR as _span
@@ -30,7 +31,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 #: Every prior, in the order they run (stage by stage).
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
-    _deepen, _join_parts, _span, _rows, _mirror, _copies, _boards, _posts,
+    _deepen, _join_parts, _span, _rows, _mirror, _copies, _boards, _reach, _posts,
     _from_below, _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.

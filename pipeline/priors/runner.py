@@ -67,13 +67,15 @@ class EditLog:
 
 
 def run_stage(stage: str, arr: Arrangement, evidence: Evidence, ctx: Context, config,
-              report: EditLog, only: str | None = None) -> Arrangement:
-    """Run the enabled priors of ``stage`` (or the one named ``only``) on ``arr``: each
+              report: EditLog, only: str | tuple[str, ...] | None = None) -> Arrangement:
+    """Run the enabled priors of ``stage`` (or those named in ``only``) on ``arr``: each
     proposal through :func:`pipeline.priors.gate.accept`, recorded in ``report``;
     ``config`` is the :class:`pipeline.priors.ImagineConfig`."""
+    if isinstance(only, str):
+        only = (only,)
     for prior in PRIORS:
         if prior.stage != stage or not config.enabled(prior.name) or (
-                only is not None and prior.name != only):
+                only is not None and prior.name not in only):
             continue
         gen = prior.apply(arr, evidence, config.params_of(prior), ctx)
         verdict = None

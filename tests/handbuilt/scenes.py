@@ -174,6 +174,25 @@ def table_scene(leg_hidden: bool = False) -> HandScene:
                      eye=(0.5 if leg_hidden else 0.25, -1.9, 0.45), target=(0.0, 0.0, 0.35))
 
 
+def lever_scene() -> HandScene:
+    """A plank on a block with a weight on its near end, filmed end-on along the plank.
+
+    The plank (1.2 m along y) rests on a block under its far half; the weight (6.9 kg at
+    density 1000, on the plank's near end, as wide as the plank) has its centre 0.22 m
+    past the block's edge and the plank's own far arm balances it: the common centre of
+    mass of plank and weight lies 0.105 m inside the block's edge.  From the camera in
+    line with the plank, just below the weight's top, the plank shows only its end: its
+    length runs away behind the weight, hidden.  All contacts are ``touch``.
+    """
+    block = part("block", (-0.20, -0.30, 0.00), (0.20, 0.10, 0.80))
+    plank = part("plank", (-0.12, -0.80, 0.80), (0.12, 0.40, 0.84))
+    weight = part("weight", (-0.12, 0.24, 0.84), (0.12, 0.40, 1.02))
+    truth = Arrangement((block, plank, weight), (ground(),),
+                        edges(("block", "ground", "touch"), ("plank", "block", "touch"),
+                              ("weight", "plank", "touch")))
+    return HandScene("lever", truth, eye=(0.0, 2.6, 0.95), target=(0.0, 0.0, 0.6))
+
+
 # ------------------------------------------------------------------------ scan and run
 def write_scene_dir(scene: HandScene, out: Path, seed: int = SEED,
                     intrinsics: Intrinsics = INTRINSICS) -> Path:

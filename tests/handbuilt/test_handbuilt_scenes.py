@@ -36,7 +36,7 @@ from . import scenes as S
 
 SCENES = {"plank": S.plank_scene, "cantilever": S.cantilever_scene, "chair": S.chair_scene,
           "wall_shelf": S.wall_shelf_scene, "table": S.table_scene,
-          "table_leg_hidden": lambda: S.table_scene(leg_hidden=True)}
+          "table_leg_hidden": lambda: S.table_scene(leg_hidden=True), "lever": S.lever_scene}
 ENGINES = ("mujoco", "pybullet")
 #: A box counts as its part's only when they overlap this much (issue 20, point 5).
 MIN_IOU = 0.1
@@ -124,6 +124,29 @@ def test_cantilever_stands_only_glued():
     # board is 4.0 cm from the pillar's axis, inside its 20 x 20 cm footprint
     com = sum(c.mass * c.center for c in truth.cuboids) / sum(c.mass for c in truth.cuboids)
     assert com[0] == pytest.approx(0.0404, abs=1e-3)
+
+
+def test_lever_balances_at_the_block_and_its_stub_alone_does_not():
+    truth = S.lever_scene().truth
+    plank, weight = truth.cuboid("plank"), truth.cuboid("weight")
+    com = (plank.mass * plank.center + weight.mass * weight.center) / (plank.mass + weight.mass)
+    assert com[1] == pytest.approx(-0.005, abs=1e-3)  # 0.105 m inside the edge y = 0.10
+    # the plank cut back to reach only 5 cm onto the block tips off it with the weight
+    stub = plank.with_(center=np.array([0.0, 0.225, plank.center[2]]),
+                       size=np.array([plank.size[0], 0.35, plank.size[2]]))
+    cut = truth.with_(cuboids=(truth.cuboid("block"), stub, weight), contacts=())
+    touching = tuple(Contact(a, b, "touch") for a, b in find_contacts(cut).pairs)
+    assert len(touching) == 3  # stub on block, weight on stub, block on the floor
+    assert not check_stability(cut.with_(contacts=touching), mu=S.MU).stable
+    assert check_stability(truth, mu=S.MU).stable
+
+
+def test_lever_without_reach_leaves_the_plank_hanging(runs, tmp_path):
+    """The ablation: with ``--disable reach`` nothing holds the plank and its weight."""
+    scene, scene_dir, _, _ = runs("lever")
+    code, pred = S.run_user(scene_dir, tmp_path / "out", "--disable", "reach")
+    assert code == 1 and not pred.stability.stable
+    assert ("block", "plank", "touch") not in mapped_graph(pred, scene.truth)
 
 
 def test_wall_shelf_floor_is_out_of_the_picture(runs):
