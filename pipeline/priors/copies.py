@@ -6,7 +6,9 @@ largest horizontal area) and two or three legs under it (upright parts taller th
 at most ``leg_max_width`` of the top's narrower side) in distinct quadrants of the top
 gets the missing legs.  With three seen, the fourth completes their parallelogram (the
 legs stand at the corners of a rectangle, and three of them place the fourth without the
-top, whose far strip may be lost or imagined); with two, the diagonally opposite leg
+top, whose far strip may be lost or imagined) when they make a right angle within
+``corner_deg`` at the leg diagonal to it: three legs about a triangle (a three-legged
+table, two at the back corners and one at the front's middle) are all there are; with two, the diagonally opposite leg
 turned half a turn about the top's vertical axis (independent of the top's yaw), or a
 neighbouring quadrant's leg mirrored.
 With both legs seen at one end, the top first grows to where a view saw past its far
@@ -36,6 +38,9 @@ MIRROR_SLACK = 0.02
 @dataclass(frozen=True)
 class Params:
     leg_max_width: float = 0.5  #: a leg's width / its top's narrower horizontal side
+    #: degrees: three seen legs place a fourth only where they make a right angle within
+    #: this (the corner of a rectangle, not a tripod's triangle)
+    corner_deg: float = 15.0
     edge_step: float = 0.01  #: metres: a top grows to its seen edge in these steps ...
     edge_max_rel: float = 0.5  #: ... by at most this fraction of its extent there
     edge_hidden_min: float = 0.25  #: share of the strip past the edge another object hides
@@ -217,9 +222,16 @@ def apply(arr, evidence, p: Params, ctx):
             if len(legs) == 3:
                 # the fourth completes the parallelogram of the three seen (src is the
                 # diagonal one): the seen legs place it, not the top's centre, whose far
-                # edge may be imagined
-                pos = (local[quads.index((missing[0], -missing[1]))]
-                       + local[quads.index((-missing[0], missing[1]))] - local[src])
+                # edge may be imagined.  Only a right angle at src is a rectangle's
+                # corner: three legs about a triangle (a tripod) are all there are
+                a = local[quads.index((missing[0], -missing[1]))]
+                b = local[quads.index((-missing[0], missing[1]))]
+                hz = [k for k in range(3) if k != up]
+                u, w = (a - local[src])[hz], (b - local[src])[hz]
+                if abs(u @ w) > np.sin(np.radians(p.corner_deg)) * np.linalg.norm(u) * \
+                        np.linalg.norm(w):
+                    continue
+                pos = a + b - local[src]
             else:
                 pos = local[src].copy()
                 pos[list(flips)] = -pos[list(flips)]

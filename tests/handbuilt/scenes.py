@@ -174,6 +174,26 @@ def table_scene(leg_hidden: bool = False) -> HandScene:
                      eye=(0.5 if leg_hidden else 0.25, -1.9, 0.45), target=(0.0, 0.0, 0.35))
 
 
+def tripod_table_scene() -> HandScene:
+    """A three-legged table (top glued to two legs at its back corners and one at the
+    middle of its front, legs on the floor), filmed from the front, right and above.
+
+    Three legs in three quadrants of the top are all the legs it has: no fourth is
+    hidden (the ``copies`` prior completes a rectangle only from a right angle, and the
+    corner a rectangle would put beyond the top's left edge is in plain view, empty).
+    """
+    W, D, T, H, leg, inset = 1.0, 0.6, 0.04, 0.72, 0.05, 0.04
+    parts = [part("top", (-W / 2, -D / 2, H - T), (W / 2, D / 2, H), "table")]
+    spots = ((-W / 2 + inset, D / 2 - inset - leg), (W / 2 - inset - leg, D / 2 - inset - leg),
+             (-leg / 2 + 0.03, -D / 2 + inset))
+    tri = []
+    for k, (x0, y0) in enumerate(spots):
+        parts.append(part(f"leg{k}", (x0, y0, 0.0), (x0 + leg, y0 + leg, H - T), "table"))
+        tri += [(f"leg{k}", "top", "fixed"), (f"leg{k}", "ground", "touch")]
+    truth = Arrangement(tuple(parts), (ground(),), edges(*tri))
+    return HandScene("tripod_table", truth, eye=(0.4, -1.9, 1.2), target=(0.0, 0.0, 0.35))
+
+
 def lever_scene() -> HandScene:
     """A plank on a block with a weight on its near end, filmed end-on along the plank.
 

@@ -36,7 +36,8 @@ from . import scenes as S
 
 SCENES = {"plank": S.plank_scene, "cantilever": S.cantilever_scene, "chair": S.chair_scene,
           "wall_shelf": S.wall_shelf_scene, "table": S.table_scene,
-          "table_leg_hidden": lambda: S.table_scene(leg_hidden=True), "lever": S.lever_scene}
+          "table_leg_hidden": lambda: S.table_scene(leg_hidden=True), "lever": S.lever_scene,
+          "tripod_table": S.tripod_table_scene}
 ENGINES = ("mujoco", "pybullet")
 #: A box counts as its part's only when they overlap this much (issue 20, point 5).
 MIN_IOU = 0.1

@@ -371,6 +371,29 @@ def test_with_three_legs_seen_the_fourth_completes_their_rectangle():
     assert np.linalg.norm(half_turn - [0.55, 0.35]) > 0.07
 
 
+@pytest.mark.parametrize("depth", [0.5, 0.9])
+def test_three_legs_about_a_triangle_get_no_fourth(depth):
+    # a three-legged table: two legs at the back corners, one at the middle of the front
+    # (2 cm off centre, so the three fall in three quadrants of the top).  At the back
+    # leg diagonal to the empty quadrant the other two make an angle of about
+    # atan(2 b / a) (a: half the legs' spread, b: half their depth), 39 or 57 degrees
+    # here, far from a right angle: no rectangle, no fourth leg.  The same three legs
+    # moved to a rectangle's corners get one
+    top = box("top", (0, 0, 0.75), (1.2, depth, 0.04), object="table")
+    a, b = 0.55, depth / 2 - 0.03
+    spots = [(-a, b), (a, b), (0.02, -b)]
+    legs = [box(f"leg{k}", (x, y, 0.365), (0.05, 0.05, 0.73), object="table")
+            for k, (x, y) in enumerate(spots)]
+    angle = np.degrees(np.arctan2(2 * b, a))
+    assert abs(90 - angle) > copies.Params().corner_deg
+    out, new = hallucinate(Arrangement((top, *legs), (ground(),)), [])
+    assert new == []
+    square = [legs[0], legs[1], legs[2].with_(center=np.array([a, -b, 0.365]))]
+    out, new = hallucinate(Arrangement((top, *square), (ground(),)), [])
+    assert len(new) == 1
+    np.testing.assert_allclose(out.cuboid(new[0]).center, [-a, -b, 0.365], atol=1e-9)
+
+
 @pytest.mark.parametrize("yaw", [0.0, 0.3, -1.2])
 def test_a_board_with_one_bracket_seen_gets_its_mirror_image_under_the_other_end(yaw):
 
