@@ -146,13 +146,13 @@ def apply(arr, evidence, p: Params, ctx):
                     if best is not None and k * p.step >= best[0]:
                         break
                     trial = pushed(c, axis, side, k * p.step)
-                    under = [o for o in ahead if _overlaps(trial, o)]
+                    under = [o for o in carriers if _overlaps(trial, o)]
                     if under and stands_on(trial, riders, under):
-                        best = (k * p.step, trial, axis, side)
+                        best = (k * p.step, trial)
                         break
         if best is None:
             continue
-        length, trial, _, _ = best
+        length, trial = best
         v = yield Edit((trial,), f"{c.id}: nothing seen holds it; it reaches {100 * length:.0f} "
                                  f"cm further, through space no view saw, to stand on what "
                                  f"is under it")
