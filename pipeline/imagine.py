@@ -168,7 +168,7 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
         posted = run_stage("complete", arr, evidence,
                            Context(mu=mu, threshold=threshold, deadline=t0 + budget,
                                    unheld=unheld), config, report, only=("reach", "posts"))
-        if posted is not arr:
+        if posted is not arr:  # run_stage returns ``arr`` itself when it accepted nothing
             whole = frozenset(posted.index[b] for b in report.added[n_added:] + list(unheld)
                               if b in posted.index)
             wider, _ = prune_by_visibility(posted, candidate_edges(posted, eyes=eyes),

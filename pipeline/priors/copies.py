@@ -8,9 +8,9 @@ gets the missing legs.  With three seen, the fourth completes their parallelogra
 legs stand at the corners of a rectangle, and three of them place the fourth without the
 top, whose far strip may be lost or imagined) when they make a right angle within
 ``corner_deg`` at the leg diagonal to it: three legs about a triangle (a three-legged
-table, two at the back corners and one at the front's middle) are all there are; with two, the diagonally opposite leg
-turned half a turn about the top's vertical axis (independent of the top's yaw), or a
-neighbouring quadrant's leg mirrored.
+table, two at the back corners and one at the front's middle) are all there are; with
+two, the diagonally opposite leg turned half a turn about the top's vertical axis
+(independent of the top's yaw), or a neighbouring quadrant's leg mirrored.
 With both legs seen at one end, the top first grows to where a view saw past its far
 edge (in steps of ``edge_step``, by at most ``edge_max_rel``), and no legs are copied
 when no view saw past it and another object hides ``edge_hidden_min`` of the strip

@@ -27,7 +27,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import face_normal, overlap_along, pushed, vertical_axis, z_range
+from ..boxops import (
+    face_normal,
+    horizontal_axes,
+    overlap_along,
+    pushed,
+    vertical_axis,
+    z_range,
+)
 from ..model import Arrangement, Cuboid
 from .base import Edit, Prior, principle_of
 from .gate import TILT_DEG
@@ -46,8 +53,7 @@ class Params:
 
 def _footprint(c: Cuboid) -> np.ndarray:
     """(4, 2) float32: the corners of an upright box's footprint, in order."""
-    ax = vertical_axis(c)
-    a, b = [k for k in range(3) if k != ax]
+    a, b = horizontal_axes(c)
     u, v = c.rotation[:2, a] * c.size[a] / 2, c.rotation[:2, b] * c.size[b] / 2
     m = c.center[:2]
     return np.array([m - u - v, m + u - v, m + u + v, m - u + v], np.float32)
@@ -135,9 +141,10 @@ def apply(arr, evidence, p: Params, ctx):
                 if eye is not None and (c.center - eye)[:2] @ u[:2] <= 0:
                     continue  # a face towards the camera: the view saw what is beyond it
                 across = c.rotation[:, 3 - ax - axis]
+                longest = pushed(c, axis, side, limit)
                 # a carrier beyond this face, across from the body
                 ahead = [o for o in carriers if overlap_along(c, o, across) > 0
-                         and overlap_along(pushed(c, axis, side, limit), o, u) > 0
+                         and overlap_along(longest, o, u) > 0
                          and (o.center - c.center) @ u > 0]
                 if not ahead:
                     continue
