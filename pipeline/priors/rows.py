@@ -18,7 +18,12 @@ than it is tall, as far as no view saw the added space empty and it enters no bo
 outside the row but its board (tried shorter in ``steps``; a spine fitted a few
 millimetres into its board still goes back).  Two members apart across the row whose
 extents along it overlap at all (``overlap``) cannot both reach the back edge: they are
-neighbours, set side by side.
+neighbours, set side by side.  A box outside the row that the push back would enter
+lies beside the member, not behind it, when its extent along the row covers one end of
+the member's and at most ``beside_rel`` of its width (a neighbour whose foot the view
+did not see, or one already as deep as the board): the member gives up that strip along
+the row, as a split does, and goes back; a box covering more of it, or its middle,
+stops the push as before.
 """
 
 from __future__ import annotations
@@ -33,6 +38,7 @@ from ..boxops import (
     is_free,
     is_upright,
     resting_on,
+    separations,
     turn_onto,
     turned_by,
 )
@@ -51,6 +57,7 @@ class Params:
     min_width: float = 0.005  #: metres: no split leaves a member narrower
     steps: int = 4  #: a push back into space a view saw empty is tried shorter in steps
     to_board: bool = True  #: members go back to the board's back edge
+    beside_rel: float = 0.5  #: share of its width a member gives up along the row to a neighbour
 
 
 def _axis_towards(c: Cuboid, u: np.ndarray) -> tuple[int, float]:
@@ -77,6 +84,35 @@ def _with_range(c: Cuboid, origin: np.ndarray, u: np.ndarray, lo: float, hi: flo
     size[k] = hi - lo
     center = c.center + axis * (0.5 * (lo + hi) - 0.5 * (old_lo + old_hi))
     return c.with_(center=center, size=size)
+
+
+def _beside(arr: Arrangement, new: Cuboid, added: Cuboid, origin: np.ndarray,
+            X: np.ndarray, skip, p: Params) -> Cuboid | None:
+    """``new`` as it may be pushed back into ``added`` (the space behind it): itself when
+    ``added`` enters no box but those at ``skip``; narrowed along the row ``X`` to clear
+    the boxes it enters when each lies beside it (its extent along ``X`` covers one end of
+    ``new``'s, at most ``p.beside_rel`` of its width, and no less than ``p.min_width`` is
+    left); else None."""
+    sep, tol = separations(arr, added)
+    hit = sep < -tol
+    hit[list(skip)] = False
+    if not hit.any():
+        return new
+    lo, hi = _range(new, origin, X)
+    width = hi - lo
+    for h in np.nonzero(hit)[0].tolist():
+        h0, h1 = _range(arr.cuboids[h], origin, X)
+        if h0 > lo and h0 < hi and h1 >= hi and hi - h0 <= p.beside_rel * width:
+            hi = h0  # the neighbour beyond new's high end
+        elif h1 < hi and h1 > lo and h0 <= lo and h1 - lo <= p.beside_rel * width:
+            lo = h1
+        else:
+            return None
+    if hi - lo < p.min_width:
+        return None
+    narrowed = _with_range(new, origin, X, lo, hi)
+    narrowed = narrowed.with_(observed=_observed_within(new, narrowed, X))
+    return narrowed if is_free(arr, _with_range(added, origin, X, lo, hi), skip) else None
 
 
 def _observed_within(c: Cuboid, new: Cuboid, u: np.ndarray) -> ObservedBox | None:
@@ -222,15 +258,18 @@ def apply(arr, evidence, p: Params, ctx):
                 tall = zr[k][1] - zr[k][0]
                 a0, a1 = ((y1, min(back, max(y1, y0 + tall))) if away > 0
                           else (max(-back, min(y0, y1 - tall)), y0))
+                skip = row + [arr.index[s.id]]
                 for j in range(p.steps, 0, -1):  # as far back as no view saw empty
                     b0, b1 = (a0, a0 + (a1 - a0) * j / p.steps) if away > 0 else (
                         a1 - (a1 - a0) * j / p.steps, a1)
                     if b1 - b0 <= 1e-4:
                         break
                     added = _with_range(new, s.center, Y, b0, b1)
-                    if not evidence.seen_empty(box_samples(added)) and \
-                            is_free(arr, added, skip=row + [arr.index[s.id]]):
-                        new = _with_range(new, s.center, Y, min(y0, b0), max(y1, b1))
+                    if evidence.seen_empty(box_samples(added)):
+                        continue
+                    narrowed = _beside(arr, new, added, s.center, X, skip, p)
+                    if narrowed is not None:
+                        new = _with_range(narrowed, s.center, Y, min(y0, b0), max(y1, b1))
                         break
                 new_boxes.append(new)
             v = yield Edit(tuple(new_boxes), f"a row of {len(row)} on {s.id} set side by side")

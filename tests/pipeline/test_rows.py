@@ -207,3 +207,47 @@ def test_a_book_sunk_a_little_into_its_board_still_goes_back():
     out, ids = resolve_rows(arr)
     assert ids == ["book"]
     np.testing.assert_allclose(_y(out.cuboid("book")), (-0.15, 0.05), atol=1e-12)
+
+
+def _beside_scene(overlap: float) -> Arrangement:
+    """A 4 cm spine on the board and, overlapping it by ``overlap`` along the row at its
+    right end, a neighbour already as deep as the row whose foot the view did not see
+    (fitted 6 cm above the board, so it is no member of the row)."""
+    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
+    spine = _book("a", -0.10, -0.06, -0.15, -0.14)
+    x0 = -0.06 - overlap
+    nb = box("n", ((x0 - 0.03) / 2 + 0.0, -0.02, TOP + 0.06 + H / 2),
+             (-0.03 - x0, 0.24, H), object="n")
+    nb = nb.with_(observed=ObservedBox(nb.center, nb.size))
+    return Arrangement((board.with_(observed=ObservedBox(board.center, board.size)),
+                        spine, nb), (ground(),))
+
+
+def test_a_book_gives_up_the_strip_a_neighbour_beside_it_covers_and_goes_back():
+    """The neighbour covers 1 cm of the spine's 4 (a quarter): it lies beside the
+    spine, not behind it, so the spine yields that strip along the row and goes back as
+    deep as it is tall; the neighbour is not moved."""
+    arr = _beside_scene(0.01)
+    # the neighbour is no member of the row: nothing rests on the board but the spine
+    out, ids = resolve_rows(arr)
+    assert ids == ["a"]
+    np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.07), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, -0.15 + H), atol=1e-12)
+    assert out.cuboid("n") is arr.cuboid("n")
+    assert not find_contacts(out).penetrations
+    # the observed box is cut with it (the refinement keeps a box around what was seen)
+    o = out.cuboid("a").observed
+    np.testing.assert_allclose(o.center[0] + np.array([-1, 1]) * o.size[0] / 2,
+                               (-0.10, -0.07), atol=1e-12)
+
+
+def test_a_neighbour_covering_half_the_book_is_behind_it_and_stops_the_push():
+    """Just inside and just outside ``beside_rel`` (half the spine's 4 cm width): a
+    neighbour covering 1.9 cm of it is beside it, one covering 2.1 cm stops the push
+    (every step back enters it: the spine stays as fitted)."""
+    out, _ = resolve_rows(_beside_scene(0.019))
+    np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.079), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, -0.15 + H), atol=1e-12)
+    out, _ = resolve_rows(_beside_scene(0.021))
+    np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.06), atol=1e-12)
+    np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, -0.14), atol=1e-12)
