@@ -286,15 +286,43 @@ def separations(arr: Arrangement, cand: Cuboid) -> tuple[np.ndarray, np.ndarray]
     return sep, tol
 
 
-def is_free(arr: Arrangement, cand: Cuboid, skip=()) -> bool:
-    """Whether ``cand`` enters none of the cuboids of ``arr`` (beyond contact tolerance)
+def entered(arr: Arrangement, cand: Cuboid, skip=()) -> np.ndarray:
+    """Indices of the cuboids of ``arr`` that ``cand`` enters (beyond contact tolerance),
     but those at the indices ``skip``."""
     if not arr.cuboids:
-        return True
+        return np.zeros(0, int)
     sep, tol = separations(arr, cand)
     hit = sep < -tol
     hit[list(skip)] = False
-    return not bool(hit.any())
+    return np.nonzero(hit)[0]
+
+
+def is_free(arr: Arrangement, cand: Cuboid, skip=()) -> bool:
+    """Whether ``cand`` enters none of the cuboids of ``arr`` (beyond contact tolerance)
+    but those at the indices ``skip``."""
+    return not len(entered(arr, cand, skip))
+
+
+def flat_axes_xy(R: np.ndarray) -> np.ndarray:
+    """(K, 2, 2) unit xy directions of the two local axes nearest horizontal of each of
+    the rotations ``R`` (K, 3, 3), in the order of the axes."""
+    up_axis = np.argmax(np.abs(R[:, 2, :]), axis=1)
+    cols = np.array([[a for a in range(3) if a != u] for u in up_axis])  # (K, 2)
+    ax = np.take_along_axis(R[:, :2, :], cols[:, None, :], axis=2)  # (K, 2 xy, 2 axes)
+    ax = np.transpose(ax, (0, 2, 1))  # (K, 2 axes, 2 xy)
+    n = np.linalg.norm(ax, axis=2, keepdims=True)
+    return ax / np.maximum(n, 1e-12)
+
+
+def footprints(C: np.ndarray, R: np.ndarray, S: np.ndarray) -> np.ndarray:
+    """(K, 4, 2) corners of the footprints on the ground of the boxes with centres ``C``,
+    rotations ``R`` and sizes ``S``, in order around each."""
+    up_axis = np.argmax(np.abs(R[:, 2, :]), axis=1)
+    cols = np.array([[a for a in range(3) if a != u] for u in up_axis])
+    half = np.take_along_axis(S, cols, axis=1) / 2  # (K, 2)
+    signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)  # (4, 2)
+    off = np.einsum("cs,ks,ksd->kcd", signs, half, flat_axes_xy(R))
+    return C[:, None, :2] + off
 
 
 def box_samples(c: Cuboid, n: int = 5) -> np.ndarray:

@@ -55,6 +55,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .boxops import flat_axes_xy, footprints
 from .model import Arrangement, Cuboid
 
 #: Power iteration: at most this many steps, stopping when the vector moves less than
@@ -178,7 +179,7 @@ class Parts:
     @property
     def object_span(self) -> float:
         """Horizontal diameter of the parts' footprints (metres, at least 1 mm)."""
-        fp = footprints(self).reshape(-1, 2)
+        fp = footprints(self.centers, self.rotations, self.sizes).reshape(-1, 2)
         return max(float(np.linalg.norm(fp.max(0) - fp.min(0))), 1e-3)
 
 
@@ -196,29 +197,6 @@ def parts_of(cuboids: tuple[Cuboid, ...] | list[Cuboid]) -> Parts:
     horiz = S[mask].reshape(-1, 2)
     return Parts(tuple(c.id for c in cuboids), C, R, S, height, horiz.max(1), horiz.min(1),
                  C[:, 2] - height / 2)
-
-
-def horizontal_axes(parts: Parts) -> np.ndarray:
-    """(K, 2, 2) unit xy directions of each box's two local axes nearest horizontal."""
-    R = parts.rotations
-    up_axis = np.argmax(np.abs(R[:, 2, :]), axis=1)
-    cols = np.array([[a for a in range(3) if a != u] for u in up_axis])  # (K, 2)
-    ax = np.take_along_axis(R[:, :2, :], cols[:, None, :], axis=2)  # (K, 2 xy, 2 axes)
-    ax = np.transpose(ax, (0, 2, 1))  # (K, 2 axes, 2 xy)
-    n = np.linalg.norm(ax, axis=2, keepdims=True)
-    return ax / np.maximum(n, 1e-12)
-
-
-def footprints(parts: Parts) -> np.ndarray:
-    """(K, 4, 2) corners of each box's footprint on the ground, in order around it."""
-    R = parts.rotations
-    up_axis = np.argmax(np.abs(R[:, 2, :]), axis=1)
-    cols = np.array([[a for a in range(3) if a != u] for u in up_axis])
-    half = np.take_along_axis(parts.sizes, cols, axis=1) / 2  # (K, 2)
-    ax = horizontal_axes(parts)
-    signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)  # (4, 2)
-    off = np.einsum("cs,ks,ksd->kcd", signs, half, ax)
-    return parts.centers[:, None, :2] + off
 
 
 # --------------------------------------------------------------------------- matching
@@ -372,7 +350,8 @@ def edge_alignments(a: Parts, b: Parts, pairs, dz: float) -> np.ndarray:
     if not len(pairs):
         return np.zeros((0, 4, 4))
     pairs = np.asarray(pairs, int)
-    fa, fb = footprints(a)[pairs[:, 0]], footprints(b)[pairs[:, 1]]  # (P, 4, 2)
+    fa = footprints(a.centers, a.rotations, a.sizes)[pairs[:, 0]]  # (P, 4, 2)
+    fb = footprints(b.centers, b.rotations, b.sizes)[pairs[:, 1]]
     ea = np.stack([fa, np.roll(fa, -1, axis=1)], 2)  # (P, 4, 2 ends, 2)
     eb = np.stack([fb, np.roll(fb, -1, axis=1)], 2)
     eb = np.concatenate([eb, eb[:, :, ::-1]], 1)  # (P, 8, 2, 2): both ways round
@@ -540,7 +519,7 @@ def refine_matching(a: Parts, b: Parts, T: np.ndarray, config: CompleteConfig | 
         return Matching((), (), 0, 0)
     # the partial object's horizontal axes: those of its largest part
     k = int(np.argmax(np.prod(b.sizes, axis=1)))
-    ax = horizontal_axes(b)[k, 0]
+    ax = flat_axes_xy(b.rotations)[k, 0]
     yaw = float(np.arctan2(ax[1], ax[0]))
     F = upright_transform(yaw, np.zeros(3))[:3, :3]  # columns: the frame's axes in world
 
@@ -583,7 +562,7 @@ def box_affine(a: Parts, b: Parts, T: np.ndarray) -> np.ndarray:
     from .model import box_corners
 
     k = int(np.argmax(np.prod(b.sizes, axis=1)))
-    ax = horizontal_axes(b)[k, 0]
+    ax = flat_axes_xy(b.rotations)[k, 0]
     F = upright_transform(float(np.arctan2(ax[1], ax[0])), np.zeros(3))[:3, :3]
     ca = box_corners(a.centers, a.rotations, a.sizes).reshape(-1, 3) @ T[:3, :3].T + T[:3, 3]
     cb = box_corners(b.centers, b.rotations, b.sizes).reshape(-1, 3)

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..boxops import (
     face_normal,
-    horizontal_axes,
+    footprints,
     overlap_along,
     pushed,
     vertical_axis,
@@ -52,11 +52,8 @@ class Params:
 
 
 def _footprint(c: Cuboid) -> np.ndarray:
-    """(4, 2) float32: the corners of an upright box's footprint, in order."""
-    a, b = horizontal_axes(c)
-    u, v = c.rotation[:2, a] * c.size[a] / 2, c.rotation[:2, b] * c.size[b] / 2
-    m = c.center[:2]
-    return np.array([m - u - v, m + u - v, m + u + v, m - u + v], np.float32)
+    """(4, 2) float32: the corners of an upright box's footprint, in order (for OpenCV)."""
+    return footprints(c.center[None], c.rotation[None], c.size[None])[0].astype(np.float32)
 
 
 def _contact_region(c: Cuboid, supports: list[Cuboid]) -> np.ndarray | None:
@@ -98,7 +95,8 @@ def _overlaps(a: Cuboid, b: Cuboid) -> bool:
 
 
 def stands_on(body: Cuboid, riders: list[Cuboid], supports: list[Cuboid]) -> bool:
-    """Whether ``body`` with ``riders`` on it stands on ``supports``: the centre of mass
+    """Whether ``body`` with ``riders`` on it stands on ``supports`` (those whose tops its
+    footprint does not meet count for nothing): the centre of mass
     of all of them lies inside the region where the body touches the supports' tops, at
     least its height above that region times tan(:data:`TILT_DEG`) from its edge."""
     import cv2
@@ -119,7 +117,8 @@ def apply(arr, evidence, p: Params, ctx):
     if not unheld or not arr.cuboids:
         return
     limit = p.max_rel * float(np.median([s for c in arr.cuboids for s in c.size]))
-    eye = evidence.views[0].eye if evidence.views else None
+    steps = int(limit / p.step)
+    eye = evidence.eye
     # carriers first: what rests on a body is judged once the body has reached
     order = sorted((c for c in arr.cuboids if c.id in unheld and vertical_axis(c) is not None),
                    key=lambda c: (z_range(c)[0], c.id))
@@ -132,7 +131,7 @@ def apply(arr, evidence, p: Params, ctx):
         if not carriers:
             continue
         riders = _riders(arr, c, p.rest_gap, {o.id for o in carriers})
-        if stands_on(c, riders, [o for o in carriers if _overlaps(c, o)]):
+        if stands_on(c, riders, carriers):
             continue  # it stands over what is under it: the search's to join
         best = None
         for axis in (k for k in range(3) if k != ax):
@@ -148,13 +147,11 @@ def apply(arr, evidence, p: Params, ctx):
                          and (o.center - c.center) @ u > 0]
                 if not ahead:
                     continue
-                n = int(limit / p.step)
-                for k in range(1, n + 1):
+                for k in range(1, steps + 1):
                     if best is not None and k * p.step >= best[0]:
                         break
                     trial = pushed(c, axis, side, k * p.step)
-                    under = [o for o in carriers if _overlaps(trial, o)]
-                    if under and stands_on(trial, riders, under):
+                    if stands_on(trial, riders, carriers):
                         best = (k * p.step, trial)
                         break
         if best is None:

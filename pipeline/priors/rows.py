@@ -34,11 +34,11 @@ import numpy as np
 
 from ..boxops import (
     box_samples,
+    entered,
     extent_along,
     is_free,
     is_upright,
     resting_on,
-    separations,
     turn_onto,
     turned_by,
 )
@@ -93,14 +93,12 @@ def _beside(arr: Arrangement, new: Cuboid, added: Cuboid, origin: np.ndarray,
     the boxes it enters when each lies beside it (its extent along ``X`` covers one end of
     ``new``'s, at most ``p.beside_rel`` of its width, and no less than ``p.min_width`` is
     left); else None."""
-    sep, tol = separations(arr, added)
-    hit = sep < -tol
-    hit[list(skip)] = False
-    if not hit.any():
+    hit = entered(arr, added, skip)
+    if not len(hit):
         return new
     lo, hi = _range(new, origin, X)
     width = hi - lo
-    for h in np.nonzero(hit)[0].tolist():
+    for h in hit.tolist():
         h0, h1 = _range(arr.cuboids[h], origin, X)
         if h0 > lo and h0 < hi and h1 >= hi and hi - h0 <= p.beside_rel * width:
             hi = h0  # the neighbour beyond new's high end
