@@ -10,6 +10,7 @@ from typing import Any
 from ..errors import InputError
 from .anchor_parts import PRIOR as _anchor_parts
 from .base import Prior
+from .between import PRIOR as _between
 from .boards import PRIOR as _boards
 from .close_gaps import PRIOR as _close_gaps
 from .copies import PRIOR as _copies
@@ -31,7 +32,7 @@ from .yaw_fit import PRIOR as _yaw_fit
 #: Every prior, in the order they run (stage by stage).
 PRIORS: tuple[Prior, ...] = (
     _upright, _yaw_fit, _object_yaw, _support_yaw, _overlaps,
-    _deepen, _join_parts, _span, _rows, _mirror, _copies, _boards, _reach, _posts,
+    _deepen, _join_parts, _span, _rows, _mirror, _copies, _boards, _between, _reach, _posts,
     _from_below, _relax_glue, _anchor_parts, _close_gaps)
 BY_NAME: dict[str, Prior] = {p.name: p for p in PRIORS}
 #: Shorthands accepted where priors are named: ``symmetry`` is both symmetry priors.

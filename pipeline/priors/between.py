@@ -1,0 +1,176 @@
+"""What lies between an object's sides rests on that object: the part under it is hidden.
+
+Evidence: the segmentation's objects, the completed boxes and the depth views.
+Regularity: furniture carries what lies inside it (cushions on a sofa's seat between its
+arms, things on a cabinet's bottom between its sides), and a view from the side or from
+above sees the load's top and the sides that flank it but not the part under it.  A box
+(the load) whose bottom is ``min_height`` or more above the floor with no box under it,
+lying between two upright parts of another object (square to each other, beside it:
+their heights overlap its own, on opposite sides of it along a horizontal axis of
+theirs, each within ``side_tol`` of the fit's noise, and each covering at least
+``cover_min`` of its extent along the other axis), rests
+on a hidden part of that object: one box, square to the two parts, from one's inner face
+to the other's, over the extent along the other axis both cover (cut back at the near
+face of a box it would enter at one end), from the floor up to the lowest bottom of the
+loads between them.  The gate keeps it only where it enters nothing and no view saw its
+space empty.  Without it the search stands each load on the floor by a column of its
+own: as many hidden volumes as loads where one part of the flanking object explains
+them all.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..boxops import (
+    entered,
+    extent_along,
+    floor_height,
+    horizontal_axes,
+    same_axes,
+    vertical_axis,
+    z_range,
+)
+from ..model import Cuboid
+from .base import Edit, Prior, principle_of
+
+
+@dataclass(frozen=True)
+class Params:
+    min_height: float = 0.10  #: metres: a load lower above the floor than this is left alone
+    side_tol: float = 0.03  #: metres a side may reach into the load's extent (fit noise)
+    cover_min: float = 0.5  #: least share of the load's extent along the sides that each covers
+
+
+def _column(c: Cuboid, ground: float, bottom: float) -> Cuboid:
+    """The space under an upright box ``c`` down to the floor (its own footprint)."""
+    ax = vertical_axis(c)
+    size = c.size.copy()
+    size[ax] = bottom - ground
+    centre = np.array([c.center[0], c.center[1], 0.5 * (ground + bottom)])
+    return Cuboid(c.id, centre, c.rotation, size, c.density)
+
+
+def loads(arr, ground: float, p: Params) -> list[tuple[int, float]]:
+    """``(k, bottom)`` of the upright boxes ``min_height`` or more above the floor with no
+    box under them (their column down to the floor enters none that ends below them)."""
+    out = []
+    for k, c in enumerate(arr.cuboids):
+        if vertical_axis(c) is None:
+            continue
+        bottom = z_range(c)[0]
+        if bottom - ground < p.min_height:
+            continue
+        under = [j for j in entered(arr, _column(c, ground, bottom), skip=[k])
+                 if z_range(arr.cuboids[j])[1] < bottom + p.side_tol]  # not one beside it
+        if not under:
+            out.append((k, bottom))
+    return out
+
+
+def flanked(arr, k: int, p: Params):
+    """``(a, b, ax)``: pairs of upright parts of one object (not ``k``'s) beside box
+    ``k`` (their heights overlap its own, within ``side_tol``) on opposite sides of it
+    along their local horizontal axis ``ax`` (``a`` on the low side)."""
+    c = arr.cuboids[k]
+    bottom, top = z_range(c)
+    sides = [j for j, q in enumerate(arr.cuboids)
+             if j != k and q.object is not None and q.object != c.object
+             and vertical_axis(q) is not None
+             and z_range(q)[1] > bottom and z_range(q)[0] < top + p.side_tol]
+    out = []
+    for i, a in enumerate(sides):
+        A = arr.cuboids[a]
+        for b in sides[i + 1:]:
+            B = arr.cuboids[b]
+            if B.object != A.object or not same_axes(A, B):
+                continue
+            ax_h = horizontal_axes(A)
+            for ax in ax_h:
+                u = A.rotation[:, ax]
+                w = A.rotation[:, next(x for x in ax_h if x != ax)]
+                (l0, l1), (wl0, wl1) = extent_along(c, u), extent_along(c, w)
+                lo, hi = sorted((a, b), key=lambda j: extent_along(arr.cuboids[j], u)[0])
+                if (extent_along(arr.cuboids[lo], u)[1] > l0 + p.side_tol
+                        or extent_along(arr.cuboids[hi], u)[0] < l1 - p.side_tol):
+                    continue
+                covers = [min(s1, wl1) - max(s0, wl0)
+                          for s0, s1 in (extent_along(arr.cuboids[j], w) for j in (lo, hi))]
+                if min(covers) >= p.cover_min * (wl1 - wl0):
+                    out.append((lo, hi, ax))
+    return out
+
+
+def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: float,
+                  top: float) -> Cuboid | None:
+    """The box between parts ``lo`` and ``hi`` (along their axis ``ax``) under the loads
+    ``members``, from the floor to ``top``, cut back along the other horizontal axis at
+    the near face of a box it would enter at one end; None when it would enter one over
+    the loads' middle."""
+    A, B = arr.cuboids[lo], arr.cuboids[hi]
+    ax_h = horizontal_axes(A)
+    aw = next(x for x in ax_h if x != ax)
+    az = vertical_axis(A)
+    u, w = A.rotation[:, ax], A.rotation[:, aw]
+    u0, u1 = extent_along(A, u)[1], extent_along(B, u)[0]
+    (a0, a1), (b0, b1) = extent_along(A, w), extent_along(B, w)
+    w0, w1 = max(a0, b0), min(a1, b1)
+    mid = float(np.mean([arr.cuboids[m].center @ w for m in members]))
+    ids = {arr.cuboids[m].id for m in members}
+    for _ in range(4):
+        if u1 - u0 <= 0 or w1 - w0 <= 0 or not w0 < mid < w1:
+            return None
+        size = np.zeros(3)
+        size[ax], size[aw], size[az] = u1 - u0, w1 - w0, top - ground
+        centre = 0.5 * (u0 + u1) * u + 0.5 * (w0 + w1) * w
+        centre = centre + 0.5 * (ground + top) * np.array([0.0, 0.0, 1.0])
+        box = Cuboid(f"{A.object}_under", centre, A.rotation, size, A.density, A.object,
+                     None, {"hallucinated": True, "points": 0})
+        hit = [j for j in entered(arr, box) if arr.cuboids[j].id not in ids]
+        if not hit:
+            return box
+        for j in hit:
+            e0, e1 = extent_along(arr.cuboids[j], w)
+            if e0 >= mid:
+                w1 = min(w1, e0)
+            elif e1 <= mid:
+                w0 = max(w0, e1)
+            else:
+                return None
+    return None
+
+
+def apply(arr, evidence, p: Params, ctx):
+    ground = floor_height(arr)
+    if ground is None:
+        return
+    done: set[str] = set()
+    while True:
+        groups: dict[tuple[int, int, int], list[tuple[int, float]]] = {}
+        for k, bottom in loads(arr, ground, p):
+            for lo, hi, ax in flanked(arr, k, p):
+                groups.setdefault((lo, hi, ax), []).append((k, bottom))
+        todo = sorted(((key, ms) for key, ms in groups.items()
+                       if arr.cuboids[key[0]].object not in done),
+                      key=lambda t: (-len(t[1]), arr.cuboids[t[0][0]].id, arr.cuboids[t[0][1]].id))
+        if not todo:
+            return
+        (lo, hi, ax), ms = todo[0]
+        obj = arr.cuboids[lo].object
+        done.add(obj)  # one hidden part per object
+        top = min(b for _k, b in ms)
+        box = under_between(arr, lo, hi, ax, [k for k, _b in ms], ground, top)
+        if box is None:
+            continue
+        names = ", ".join(sorted(arr.cuboids[k].id for k, _b in ms))
+        v = yield Edit((box,), f"{names} between {arr.cuboids[lo].id} and "
+                               f"{arr.cuboids[hi].id} of {obj}, {top - ground:.2f} m above "
+                               f"the floor with nothing under them: a hidden part of {obj} "
+                               f"carries them")
+        if v.ok:
+            arr = v.arrangement
+
+
+PRIOR = Prior("between", "complete", Params(), apply, principle_of(__doc__))

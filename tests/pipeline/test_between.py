@@ -1,0 +1,158 @@
+"""The ``between`` prior: loads lying between an object's sides rest on a hidden part of it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from pipeline.camera import Intrinsics, look_at
+from pipeline.contacts import find_contacts
+from pipeline.evidence import DepthView, Evidence
+from pipeline.imagine import imagine
+from pipeline.model import Arrangement, box, ground
+from pipeline.priors import between
+from tests.pipeline.priors_util import accepted, assert_box, changed, run
+from tests.pipeline.test_imagine import _depth_of_boxes
+
+P = between.Params()
+SEAT = 0.42  # the cushions' bottom
+DEPTH = 0.6  # the cushions' extent front to back (y from -0.3 to 0.3)
+
+
+def _xyz(name, x0, x1, y0, y1, z0, z1, obj):
+    return box(name, ((x0 + x1) / 2, (y0 + y1) / 2, (z0 + z1) / 2),
+               (x1 - x0, y1 - y0, z1 - z0), object=obj)
+
+
+def _sofa(inner_a=-0.65, arm_b_y=(-0.3, 0.3), arm_y=(-0.3, 0.3), back=True, arms=2,
+          arm_z=(0.0, 0.60)):
+    """Two arms (x) and a back (y > 0.3) of ``sofa``, three board-thick cushions of their
+    own lying between the arms 0.42 m up, nothing under them."""
+    parts = [_xyz("armA", -0.80, inner_a, *arm_y, *arm_z, "sofa")]
+    if arms == 2:
+        parts.append(_xyz("armB", 0.65, 0.80, *arm_b_y, *arm_z, "sofa"))
+    if back:
+        parts.append(_xyz("back", -0.65, 0.65, 0.30, 0.45, 0.0, 0.90, "sofa"))
+    cushions = [_xyz(f"c{i}", x0, x1, -0.3, 0.3, SEAT, SEAT + 0.02, f"cushion{i}")
+                for i, (x0, x1) in enumerate(((-0.65, -0.22), (-0.22, 0.22), (0.22, 0.65)))]
+    return Arrangement(tuple(parts + cushions), (ground(),))
+
+
+def _view(arr, eye, target=(0.0, 0.0, 0.3)):
+    intr = Intrinsics.kinect_v1()
+    T = look_at(eye, target)
+    return [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)]
+
+
+def test_cushions_between_a_sofas_arms_rest_on_one_hidden_part_of_it():
+    arr = _sofa()
+    out, ids = changed("between", arr)
+    assert ids == ["sofa_under"]
+    under = out.cuboid("sofa_under")
+    # from arm to arm, as deep as the arms, from the floor up to the cushions
+    assert_box(under, (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
+    assert under.object == "sofa" and under.extra["hallucinated"]
+    contacts = find_contacts(out)
+    assert not contacts.penetrations
+    pairs = {frozenset((contacts.names[a], contacts.names[b]))
+             for a, b in zip(contacts.a, contacts.b)}
+    for k in ("c0", "c1", "c2", "armA", "armB", "ground"):
+        assert frozenset((k, "sofa_under")) in pairs, k
+
+
+def test_the_hidden_part_stops_at_the_back_that_runs_between_the_arms():
+    # the arms run the whole depth, back included: the part under the cushions is cut
+    # at the back's front face (the back lies at one end, not under the loads' middle)
+    out, ids = changed("between", _sofa(arm_y=(-0.3, 0.45), arm_b_y=(-0.3, 0.45)))
+    assert ids == ["sofa_under"]
+    assert_box(out.cuboid("sofa_under"), (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
+
+
+def test_space_under_the_cushions_a_view_saw_empty_gets_no_part():
+    arr = _sofa()
+    # from the side, above the arm: the arm and the cushions' tops hide the space under
+    # them, and the part is kept
+    hidden = _view(arr, (-2.5, 0.0, 1.2))
+    out, report = run("between", arr, hidden)
+    assert [e.boxes for e in accepted(report, "between")] == [("sofa_under",)]
+    # from the front, low: the view saw under the cushions through to the back
+    seen = _view(arr, (0.0, -2.5, 0.25), (0.0, 0.0, 0.25))
+    out, report = run("between", arr, seen)
+    assert not accepted(report, "between")
+    (why,) = [e.why_not for e in report.edits if e.prior == "between"]
+    assert why.startswith("sofa_under: ") and why.endswith("of its added volume seen empty")
+    assert "sofa_under" not in {c.id for c in out.cuboids}
+
+
+@pytest.mark.parametrize("into, kept", [(P.side_tol - 0.001, True),
+                                        (P.side_tol + 0.001, False)])
+def test_a_side_reaching_into_the_load_by_more_than_the_fit_noise_flanks_nothing(into, kept):
+    # the arm reaches into the first cushion's extent: within the fit's noise it is still
+    # beside it; further, it is no side of it (the other two still lie between the arms)
+    out, report = run("between", _sofa(inner_a=-0.65 + into))
+    (edit,) = accepted(report, "between")
+    loads = edit.reason.split(" between ")[0]
+    assert loads == ("c0, c1, c2" if kept else "c1, c2")
+    under = out.cuboid("sofa_under")  # from the arm's inner face
+    assert under.center[0] - under.size[0] / 2 == pytest.approx(-0.65 + into)
+
+
+@pytest.mark.parametrize("share, kept", [(P.cover_min + 0.01, True),
+                                         (P.cover_min - 0.01, False)])
+def test_a_side_must_cover_the_load_front_to_back(share, kept):
+    half = share * DEPTH / 2
+    out, ids = changed("between", _sofa(arm_b_y=(-half, half), back=False))
+    assert (ids == ["sofa_under"]) is kept
+    if kept:  # over the depth both arms cover
+        assert out.cuboid("sofa_under").size[1] == pytest.approx(2 * half)
+
+
+@pytest.mark.parametrize("above, kept", [(P.side_tol - 0.001, True),
+                                         (P.side_tol + 0.001, False)])
+def test_sides_must_be_beside_the_load_not_above_it(above, kept):
+    # arms seen only by their tops (their lower ends hidden) may start just above the
+    # cushions' top within the fit's noise; parts higher up (the brackets of a board
+    # above) are no sides of it
+    low = SEAT + 0.02 + above
+    out, ids = changed("between", _sofa(arm_z=(low, low + 0.15), back=False))
+    assert (ids == ["sofa_under"]) is kept
+    if kept:
+        assert_box(out.cuboid("sofa_under"), (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
+
+
+def test_a_load_with_one_side_or_a_box_under_it_gets_nothing():
+    assert changed("between", _sofa(arms=1))[1] == []
+    arr = _sofa()
+    stool = _xyz("stool", -0.2, 0.2, -0.2, 0.2, 0.0, SEAT, "stool")  # under c1
+    low = Arrangement(arr.cuboids + (stool,), arr.supports)
+    # c1 rests on the stool; c0 and c2 still lie between the arms, but the part under
+    # them would enter the stool under their middle
+    out, ids = changed("between", low)
+    assert ids == []
+    # loads lower than min_height over the floor are left to stand on it
+    flat = Arrangement(tuple(c.with_(center=c.center - np.array([0, 0, SEAT - 0.5 * P.min_height]))
+                             if c.object.startswith("cushion") else c for c in arr.cuboids),
+                       arr.supports)
+    assert changed("between", flat)[1] == []
+
+
+def test_the_whole_pipeline_stands_the_cushions_on_the_hidden_part_not_on_columns():
+    arr = _sofa()
+    views = _view(arr, (-2.5, 0.0, 1.2))
+    res = imagine(arr, Evidence(tuple(views)))
+    final = res.arrangement
+    assert final.stability is not None and final.stability.stable
+    pairs = {frozenset((c.a, c.b)): c.type for c in final.contacts}
+    for k in ("c0", "c1", "c2"):
+        assert pairs.get(frozenset((k, "sofa_under"))) == "touch", k
+        assert frozenset((k, "ground")) not in pairs, k  # no column down to the floor
+    assert pairs.get(frozenset(("sofa_under", "ground"))) == "touch"
+    # the part is the sofa's: fixed to its arms
+    assert pairs.get(frozenset(("armA", "sofa_under"))) == "fixed"
+    # switched off, each cushion stands on a column of its own
+    from pipeline.priors import ImagineConfig
+
+    off = imagine(arr, Evidence(tuple(views)), ImagineConfig(disabled=frozenset({"between"})))
+    grounded = {k for k in ("c0", "c1", "c2")
+                if any({c.a, c.b} == {k, "ground"} for c in off.arrangement.contacts)}
+    assert grounded == {"c0", "c1", "c2"}
