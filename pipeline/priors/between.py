@@ -40,7 +40,9 @@ from .base import Edit, Prior, principle_of
 @dataclass(frozen=True)
 class Params:
     min_height: float = 0.10  #: metres: a load lower above the floor than this is left alone
-    side_tol: float = 0.03  #: metres a side may reach into the load's extent (fit noise)
+    #: metres of fit noise: how far a side may reach into the load's extent or start above
+    #: its top, and a box under the load may reach above its bottom
+    side_tol: float = 0.03
     cover_min: float = 0.5  #: least share of the load's extent along the sides that each covers
 
 
@@ -126,8 +128,8 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
         size[ax], size[aw], size[az] = u1 - u0, w1 - w0, top - ground
         centre = 0.5 * (u0 + u1) * u + 0.5 * (w0 + w1) * w
         centre = centre + 0.5 * (ground + top) * np.array([0.0, 0.0, 1.0])
-        box = Cuboid(f"{A.object}_under", centre, A.rotation, size, A.density, A.object,
-                     None, {"hallucinated": True, "points": 0})
+        box = Cuboid(_free_id(arr, f"{A.object}_under"), centre, A.rotation, size,
+                     A.density, A.object, None, {"hallucinated": True, "points": 0})
         hit = [j for j in entered(arr, box) if arr.cuboids[j].id not in ids]
         if not hit:
             return box
@@ -140,6 +142,13 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
             else:
                 return None
     return None
+
+
+def _free_id(arr, name: str) -> str:
+    """``name``, or ``name`` with the first numeric suffix no cuboid of ``arr`` has."""
+    taken = {c.id for c in arr.cuboids}
+    return next(n for n in (name, *(f"{name}{i}" for i in range(1, len(taken) + 2)))
+                if n not in taken)
 
 
 def apply(arr, evidence, p: Params, ctx):

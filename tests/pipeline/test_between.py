@@ -156,3 +156,10 @@ def test_the_whole_pipeline_stands_the_cushions_on_the_hidden_part_not_on_column
     grounded = {k for k in ("c0", "c1", "c2")
                 if any({c.a, c.b} == {k, "ground"} for c in off.arrangement.contacts)}
     assert grounded == {"c0", "c1", "c2"}
+
+
+def test_the_hidden_part_takes_a_free_id():
+    arr = _sofa()
+    clash = _xyz("sofa_under", 2.0, 2.2, 2.0, 2.2, 0.0, 0.2, "stool")  # far away
+    out, ids = changed("between", Arrangement(arr.cuboids + (clash,), arr.supports))
+    assert ids == ["sofa_under1"] and out.cuboid("sofa_under") == clash
