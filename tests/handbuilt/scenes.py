@@ -213,6 +213,29 @@ def lever_scene() -> HandScene:
     return HandScene("lever", truth, eye=(0.0, 2.6, 0.95), target=(0.0, 0.0, 0.6))
 
 
+def sofa_scene() -> HandScene:
+    """A sofa filmed from beside one arm, above it: the two seat cushions show their
+    tops over the arm, the seat block under them is hidden behind the arm.
+
+    The sofa is one object (two arms, a back, the seat block: ``fixed`` where they
+    touch, each on the floor); each cushion is an object of its own resting on the seat
+    block, flush with its front, 3 cm clear of the arms and the back and 4 cm clear of
+    each other.
+    """
+    sofa = [part("armA", (-0.80, -0.35, 0.0), (-0.65, 0.35, 0.62), "sofa"),
+            part("armB", (0.65, -0.35, 0.0), (0.80, 0.35, 0.62), "sofa"),
+            part("back", (-0.80, 0.35, 0.0), (0.80, 0.50, 0.85), "sofa"),
+            part("seat", (-0.65, -0.35, 0.0), (0.65, 0.35, 0.33), "sofa")]
+    cushions = [part("cushion0", (-0.62, -0.35, 0.33), (-0.02, 0.32, 0.45)),
+                part("cushion1", (0.02, -0.35, 0.33), (0.62, 0.32, 0.45))]
+    tri = [(k, "ground", "touch") for k in ("armA", "armB", "back", "seat")]
+    tri += [("seat", "armA", "fixed"), ("seat", "armB", "fixed"), ("seat", "back", "fixed"),
+            ("armA", "back", "fixed"), ("armB", "back", "fixed"),
+            ("cushion0", "seat", "touch"), ("cushion1", "seat", "touch")]
+    truth = Arrangement(tuple(sofa + cushions), (ground(),), edges(*tri))
+    return HandScene("sofa", truth, eye=(-2.0, 0.0, 1.9), target=(0.0, 0.0, 0.35))
+
+
 # ------------------------------------------------------------------------ scan and run
 def write_scene_dir(scene: HandScene, out: Path, seed: int = SEED,
                     intrinsics: Intrinsics = INTRINSICS) -> Path:

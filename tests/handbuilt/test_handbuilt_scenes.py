@@ -37,7 +37,7 @@ from . import scenes as S
 SCENES = {"plank": S.plank_scene, "cantilever": S.cantilever_scene, "chair": S.chair_scene,
           "wall_shelf": S.wall_shelf_scene, "table": S.table_scene,
           "table_leg_hidden": lambda: S.table_scene(leg_hidden=True), "lever": S.lever_scene,
-          "tripod_table": S.tripod_table_scene}
+          "tripod_table": S.tripod_table_scene, "sofa": S.sofa_scene}
 ENGINES = ("mujoco", "pybullet")
 #: A box counts as its part's only when they overlap this much (issue 20, point 5).
 MIN_IOU = 0.1
@@ -148,6 +148,17 @@ def test_lever_without_reach_leaves_the_plank_hanging(runs, tmp_path):
     code, pred = S.run_user(scene_dir, tmp_path / "out", "--disable", "reach")
     assert code == 1 and not pred.stability.stable
     assert ("block", "plank", "touch") not in mapped_graph(pred, scene.truth)
+
+
+def test_sofa_without_between_stands_each_cushion_on_the_floor(runs, tmp_path):
+    """The ablation: with ``--disable between`` the hidden seat block is not imagined,
+    and the search holds each cushion by a column of its own down to the floor."""
+    scene, scene_dir, _, _ = runs("sofa")
+    code, pred = S.run_user(scene_dir, tmp_path / "out", "--disable", "between")
+    assert code == 0
+    graph = mapped_graph(pred, scene.truth)
+    assert {("cushion0", "ground", "touch"), ("cushion1", "ground", "touch")} <= graph
+    assert not {e for e in graph if "seat" in e[:2]}
 
 
 def test_wall_shelf_floor_is_out_of_the_picture(runs):
