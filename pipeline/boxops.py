@@ -636,6 +636,14 @@ def in_shadow(points: np.ndarray, eye: np.ndarray, box: Cuboid) -> np.ndarray:
     return enter < leave
 
 
+def free_id(arr: Arrangement, name: str) -> str:
+    """``name``, or ``name`` with the first numeric suffix no cuboid of ``arr`` has (the
+    id of a box a prior adds)."""
+    taken = {c.id for c in arr.cuboids}
+    return next(n for n in (name, *(f"{name}{i}" for i in range(1, len(taken) + 2)))
+                if n not in taken)
+
+
 def replaced(arr: Arrangement, boxes) -> Arrangement:
     """``arr`` with the cuboids of ``boxes`` (by id) in place of its own."""
     new = {c.id: c for c in boxes}

@@ -28,7 +28,9 @@ from ..boxops import (
     entered,
     extent_along,
     floor_height,
+    free_id,
     horizontal_axes,
+    overlap_along,
     same_axes,
     vertical_axis,
     z_range,
@@ -72,16 +74,16 @@ def loads(arr, ground: float, p: Params) -> list[tuple[int, float]]:
     return out
 
 
-def flanked(arr, k: int, p: Params):
-    """``(a, b, ax)``: pairs of upright parts of one object (not ``k``'s) beside box
-    ``k`` (their heights overlap its own, within ``side_tol``) on opposite sides of it
-    along their local horizontal axis ``ax`` (``a`` on the low side)."""
+def flanked(arr, k: int, parts: list[int], p: Params):
+    """``(a, b, ax)``: pairs of ``parts`` (upright parts of objects) of one object, not
+    ``k``'s, beside box ``k`` (their heights overlap its own, within ``side_tol``) on
+    opposite sides of it along their local horizontal axis ``ax`` (``a`` on the low
+    side)."""
     c = arr.cuboids[k]
     bottom, top = z_range(c)
-    sides = [j for j, q in enumerate(arr.cuboids)
-             if j != k and q.object is not None and q.object != c.object
-             and vertical_axis(q) is not None
-             and z_range(q)[1] > bottom and z_range(q)[0] < top + p.side_tol]
+    sides = [j for j in parts if j != k and arr.cuboids[j].object != c.object
+             and z_range(arr.cuboids[j])[1] > bottom
+             and z_range(arr.cuboids[j])[0] < top + p.side_tol]
     out = []
     for i, a in enumerate(sides):
         A = arr.cuboids[a]
@@ -93,14 +95,14 @@ def flanked(arr, k: int, p: Params):
             for ax in ax_h:
                 u = A.rotation[:, ax]
                 w = A.rotation[:, next(x for x in ax_h if x != ax)]
-                (l0, l1), (wl0, wl1) = extent_along(c, u), extent_along(c, w)
+                l0, l1 = extent_along(c, u)
                 lo, hi = sorted((a, b), key=lambda j: extent_along(arr.cuboids[j], u)[0])
                 if (extent_along(arr.cuboids[lo], u)[1] > l0 + p.side_tol
                         or extent_along(arr.cuboids[hi], u)[0] < l1 - p.side_tol):
                     continue
-                covers = [min(s1, wl1) - max(s0, wl0)
-                          for s0, s1 in (extent_along(arr.cuboids[j], w) for j in (lo, hi))]
-                if min(covers) >= p.cover_min * (wl1 - wl0):
+                depth = float(np.ptp(extent_along(c, w)))
+                if min(overlap_along(arr.cuboids[j], c, w) for j in (lo, hi)) \
+                        >= p.cover_min * depth:
                     out.append((lo, hi, ax))
     return out
 
@@ -121,6 +123,7 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
     w0, w1 = max(a0, b0), min(a1, b1)
     mid = float(np.mean([arr.cuboids[m].center @ w for m in members]))
     ids = {arr.cuboids[m].id for m in members}
+    name = free_id(arr, f"{A.object}_under")
     for _ in range(4):
         if u1 - u0 <= 0 or w1 - w0 <= 0 or not w0 < mid < w1:
             return None
@@ -128,8 +131,8 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
         size[ax], size[aw], size[az] = u1 - u0, w1 - w0, top - ground
         centre = 0.5 * (u0 + u1) * u + 0.5 * (w0 + w1) * w
         centre = centre + 0.5 * (ground + top) * np.array([0.0, 0.0, 1.0])
-        box = Cuboid(_free_id(arr, f"{A.object}_under"), centre, A.rotation, size,
-                     A.density, A.object, None, {"hallucinated": True, "points": 0})
+        box = Cuboid(name, centre, A.rotation, size, A.density, A.object, None,
+                     {"hallucinated": True, "points": 0})
         hit = [j for j in entered(arr, box) if arr.cuboids[j].id not in ids]
         if not hit:
             return box
@@ -144,11 +147,16 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
     return None
 
 
-def _free_id(arr, name: str) -> str:
-    """``name``, or ``name`` with the first numeric suffix no cuboid of ``arr`` has."""
-    taken = {c.id for c in arr.cuboids}
-    return next(n for n in (name, *(f"{name}{i}" for i in range(1, len(taken) + 2)))
-                if n not in taken)
+def groups_of(arr, ground: float, p: Params) -> dict[tuple[int, int, int], list]:
+    """``(lo, hi, ax)`` -> the ``(k, bottom)`` of the loads (:func:`loads`) that the pair
+    of parts ``lo`` and ``hi`` flanks along their axis ``ax`` (:func:`flanked`)."""
+    parts = [j for j, q in enumerate(arr.cuboids)
+             if q.object is not None and vertical_axis(q) is not None]
+    groups: dict[tuple[int, int, int], list] = {}
+    for k, bottom in loads(arr, ground, p):
+        for key in flanked(arr, k, parts, p):
+            groups.setdefault(key, []).append((k, bottom))
+    return groups
 
 
 def apply(arr, evidence, p: Params, ctx):
@@ -156,11 +164,8 @@ def apply(arr, evidence, p: Params, ctx):
     if ground is None:
         return
     done: set[str] = set()
+    groups = groups_of(arr, ground, p)
     while True:
-        groups: dict[tuple[int, int, int], list[tuple[int, float]]] = {}
-        for k, bottom in loads(arr, ground, p):
-            for lo, hi, ax in flanked(arr, k, p):
-                groups.setdefault((lo, hi, ax), []).append((k, bottom))
         todo = sorted(((key, ms) for key, ms in groups.items()
                        if arr.cuboids[key[0]].object not in done),
                       key=lambda t: (-len(t[1]), arr.cuboids[t[0][0]].id, arr.cuboids[t[0][1]].id))
@@ -180,6 +185,7 @@ def apply(arr, evidence, p: Params, ctx):
                                f"carries them")
         if v.ok:
             arr = v.arrangement
+            groups = groups_of(arr, ground, p)  # the new part may hold loads of others
 
 
 PRIOR = Prior("between", "complete", Params(), apply, principle_of(__doc__))

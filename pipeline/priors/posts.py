@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import floor_height, vertical_axis, z_range
+from ..boxops import floor_height, free_id, vertical_axis, z_range
 from ..model import Cuboid
 from .base import Edit, Prior, principle_of
 from .gate import TILT_DEG
@@ -77,6 +77,7 @@ def apply(arr, evidence, p: Params, ctx):
         # a post narrower than this tips under the search's tilted gravity with the box
         # on it (its centre of mass no higher than the box's): it would stand only glued
         least = max(p.min_width, 2.0 * np.tan(np.radians(TILT_DEG)) * (c.center[2] - ground))
+        name = free_id(arr, f"{c.id}_post")
         for share in WIDTHS:
             width = share * narrow
             if width < least:
@@ -84,8 +85,8 @@ def apply(arr, evidence, p: Params, ctx):
             size = np.full(3, width)
             size[ax] = height
             centre = np.array([c.center[0], c.center[1], ground + height / 2])
-            post = Cuboid(f"{c.id}_post", centre, c.rotation, size, c.density, c.object,
-                          None, {"hallucinated": True, "points": 0})
+            post = Cuboid(name, centre, c.rotation, size, c.density, c.object, None,
+                          {"hallucinated": True, "points": 0})
             v = yield Edit((post,), f"{c.id}: nothing seen holds it {height:.2f} m up; a "
                                     f"post {100 * width:.0f} cm wide under its centre")
             if v.ok:

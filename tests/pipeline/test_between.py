@@ -10,7 +10,7 @@ from pipeline.contacts import find_contacts
 from pipeline.evidence import DepthView, Evidence
 from pipeline.imagine import imagine
 from pipeline.model import Arrangement, box, ground
-from pipeline.priors import between
+from pipeline.priors import ImagineConfig, between
 from tests.pipeline.priors_util import accepted, assert_box, changed, run
 from tests.pipeline.test_imagine import _depth_of_boxes
 
@@ -150,8 +150,6 @@ def test_the_whole_pipeline_stands_the_cushions_on_the_hidden_part_not_on_column
     # the part is the sofa's: fixed to its arms
     assert pairs.get(frozenset(("armA", "sofa_under"))) == "fixed"
     # switched off, each cushion stands on a column of its own
-    from pipeline.priors import ImagineConfig
-
     off = imagine(arr, Evidence(tuple(views)), ImagineConfig(disabled=frozenset({"between"})))
     grounded = {k for k in ("c0", "c1", "c2")
                 if any({c.a, c.b} == {k, "ground"} for c in off.arrangement.contacts)}
