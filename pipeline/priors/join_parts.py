@@ -27,9 +27,10 @@ sofa's arm seen only by the far end of its top, over its back).  Both only
 through space no view saw empty and where nothing is entered.  What the sensor saw
 outranks a guess: a part stands on another only where what the sensor saw of that part
 lies under it, and a box whose guessed extent is in the way of the reach down gives way
-to it, cut back to the part's face, as long as the cut leaves all it was seen to fill
-(:func:`_give_way`: a sofa's back seen above its back cushions, whose seat and cushions
-an earlier guess had pushed back under it).
+to it, cut back to the part's face, as long as the cut leaves all it was seen to fill,
+but for the noisy edge of a box of another object, as in a join (:func:`_give_way`: a
+sofa's back seen above its back cushions, whose seat and cushions an earlier guess had
+pushed back under it, a seat cushion's fitted top reaching a few millimetres under it).
 """
 
 from __future__ import annotations
@@ -146,8 +147,7 @@ def apply(arr, evidence, p: Params, ctx):
                 if cut is None:
                     continue
                 depth, axis, _side, cubs[k] = cut
-                if depth > min(max(p.trim_abs, p.trim_rel * float(r.size[axis])),
-                               p.trim_max_share * float(r.size[axis])):
+                if not _trim_allowed(depth, float(r.size[axis]), p):
                     ok = False  # (2 cm of a 12 mm book would leave a negative size)
                     break
             if not ok:
@@ -258,10 +258,20 @@ def _cut_back(r: Cuboid, into: Cuboid, sideways: bool = False):
     return depth, axis, side, pushed(r, axis, side, -depth)
 
 
-def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
+def _trim_allowed(depth: float, extent: float, p: Params) -> bool:
+    """Whether a cut ``depth`` metres deep into a box ``extent`` metres long there stays
+    within its noisy edge: ``trim_abs`` or ``trim_rel`` of the extent, whichever is
+    larger, never ``trim_max_share`` of it."""
+    return depth <= min(max(p.trim_abs, p.trim_rel * extent), p.trim_max_share * extent)
+
+
+def _give_way(geom: Arrangement, k: int, p: Params) -> Arrangement | None:
     """``geom`` with the boxes that box ``k`` enters cut back to its face where only
-    their imagined extent is in the way (the sensor saw none of them there), or None
-    when a cut would reach into what the sensor saw of one, the floor or a wall."""
+    their imagined extent is in the way, or, for a box of another object, only the noisy
+    edge of what the sensor saw of it (:func:`_trim_allowed`, as for a box in the way of
+    a join), or None when a cut would reach deeper into what the sensor saw of one, or
+    into the floor or a wall.  What the sensor saw of a part of ``k``'s own object under
+    it is no noise: ``k`` stands on that part."""
     c = geom.cuboids[k]
     cubs = list(geom.cuboids)
     for a, b, _ in _penetrations(geom, near(geom, {k})):
@@ -276,7 +286,10 @@ def _give_way(geom: Arrangement, k: int) -> Arrangement | None:
             return None
         _depth, axis, side, cubs[j] = cut
         u = face_normal(q, axis, side)
-        if extent_along(as_seen(q), u)[1] > extent_along(cubs[j], u)[1] + 1e-6:
+        lo, hi = extent_along(as_seen(q), u)
+        into_seen = hi - extent_along(cubs[j], u)[1]
+        if into_seen > 1e-6 and ((c.object is not None and q.object == c.object)
+                                 or not _trim_allowed(into_seen, hi - lo, p)):
             return None  # the cut reaches into what the sensor saw of it
     return geom.with_(cuboids=tuple(cubs))
 
@@ -291,7 +304,7 @@ def _down_to_floor(arr: Arrangement, evidence, p: Params):
             continue
         geom = apply_offsets(arr, offsets_of([x], len(arr.cuboids)))
         cid = arr.cuboids[k].id
-        geom = _give_way(geom, k)
+        geom = _give_way(geom, k, p)
         if geom is None:
             continue
         if any(cid in (a, b) for a, b, _ in _penetrations(geom, near(geom, {k}))):
