@@ -6,11 +6,16 @@ furniture are not glued; the search judges boxes as fitted, and a box seen only 
 puts a centre of mass off (a box half hidden under another looks too short to carry
 it), so the search pays with a glue joint the scene does not have.  For each ``fixed``
 contact between different objects, in order, the joint becomes a ``touch`` and, smallest
-added volume first, one horizontal face of either box grows (by ``growth_fractions`` of
-its extent or of its widest one, or to the other box's centre or far side) into space no
-view saw empty; the first variant under which the group stands with gravity tilted by
-:data:`pipeline.search.ROBUST_TILT_DEG` is kept.  Joints within one object are what holds
-it together and stay.
+added volume first, one face of either box grows into space no view saw empty: an upright
+face by ``growth_fractions`` of its extent or of its widest one, or to the other box's
+centre or far side; the lower end, along the box's own axis (a leaning box too), until
+its lowest point meets the floor or the top of a box under that end, by no more than
+the largest growth of its largest extent (a cushion leaning on a sofa's back, seen only
+above the seat cushions in front of it: gravity says it rests on the seat; a board on
+a wall is no pillar down to the floor).  The first variant under which the group stands with gravity tilted
+by :data:`pipeline.search.ROBUST_TILT_DEG` is kept.  The joints are taken in passes until
+one drops none (a joint dropped may be what held another up).  Joints within one object
+are what holds it together and stay.
 """
 
 from __future__ import annotations
@@ -19,7 +24,9 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
-from ..boxops import face_normal, horizontal_axes, touching_group
+import numpy as np
+
+from ..boxops import face_normal, floor_height, horizontal_axes, touching_group
 from ..contacts import find_contacts
 from ..errors import InputError
 from ..evidence import slab_samples
@@ -32,11 +39,37 @@ class Params:
     growth_fractions: tuple = (0.25, 0.5, 1.0)  #: face growths, in extents of the box
 
 
+def _down_to_what_is_under(arr: Arrangement, c, axis: int, u: np.ndarray) -> set[float]:
+    """Lengths by which box ``c``'s lower end (its face ``u`` along ``axis``, the one
+    nearest down) grows until its lowest point reaches the floor or the top of a box of
+    ``arr`` under the middle of that end, as it would stand there."""
+    corners = c.corners()
+    low = float(corners[:, 2].min())
+    slope = -float(u[2])  # metres down per metre along u
+    out = set()
+    floor = floor_height(arr)
+    if floor is not None and low - floor > 1e-4:
+        out.add(round((low - floor) / slope, 6))
+    for o in arr.cuboids:
+        if o.id == c.id:
+            continue
+        top = float(o.corners()[:, 2].max())
+        if top >= low - 1e-4:
+            continue
+        length = (low - top) / slope
+        end = c.center + u * (c.size[axis] / 2 + length)  # the middle of the grown end
+        if all(abs(float((end - o.center) @ o.rotation[:, a])) <= o.size[a] / 2
+               for a in horizontal_axes(o)):
+            out.add(round(length, 6))
+    return out
+
+
 def _growths(arr: Arrangement, ids: list[str], evidence, p: Params,
              with_contacts: bool = False, contacts=None) -> Iterator:
-    """Variants of ``arr`` with one horizontal face of one of the two boxes ``ids``
-    pushed out, into space no view saw empty and without interpenetration, smallest
-    added volume first.  A face is pushed by ``p.growth_fractions`` of the box's extent
+    """Variants of ``arr`` with one face of one of the two boxes ``ids`` pushed out, into
+    space no view saw empty and without interpenetration, smallest added volume first.
+    The lower end grows down to what is under it (:func:`_down_to_what_is_under`).  An
+    upright face is pushed by ``p.growth_fractions`` of the box's extent
     and, when it faces the other box, until it reaches that box's centre or its far
     side (the paper's extension length, horizontally: under a box that overhangs), and
     by the same fractions of the box's widest horizontal extent (a part seen edge-on,
@@ -52,19 +85,25 @@ def _growths(arr: Arrangement, ids: list[str], evidence, p: Params,
         k = arr.index[c.id]
         other = [o for o in boxes if o.id != c.id]
         for axis in range(3):
-            if abs(c.rotation[2, axis]) > 0.5:  # the vertical axis: extensions do that
-                continue
             for side in (0, 1):
                 u = face_normal(c, axis, side)
-                face = float(c.center @ u + c.size[axis] / 2)
-                # fractions of this extent, and of the widest horizontal one (a slab seen
-                # edge-on, a pillar seen from the front, has almost no depth)
-                widest = max(float(c.size[a]) for a in horizontal_axes(c))
-                lengths = {round(f * e, 6) for f in p.growth_fractions
-                           for e in (float(c.size[axis]), widest)}
-                for o in other:
-                    lengths |= {round(float(o.center @ u) - face, 6),
-                                round(float((o.corners() @ u).max()) - face, 6)}
+                if abs(c.rotation[2, axis]) > 0.5:  # the vertical axis: the lower end
+                    if u[2] > 0:
+                        continue
+                    # no longer than a face may grow: a board is no pillar
+                    most = max(p.growth_fractions) * float(c.size.max())
+                    lengths = {x for x in _down_to_what_is_under(arr, c, axis, u)
+                               if x <= most}
+                else:
+                    face = float(c.center @ u + c.size[axis] / 2)
+                    # fractions of this extent, and of the widest horizontal one (a slab
+                    # seen edge-on, a pillar seen from the front, has almost no depth)
+                    widest = max(float(c.size[a]) for a in horizontal_axes(c))
+                    lengths = {round(f * e, 6) for f in p.growth_fractions
+                               for e in (float(c.size[axis]), widest)}
+                    for o in other:
+                        lengths |= {round(float(o.center @ u) - face, 6),
+                                    round(float((o.corners() @ u).max()) - face, 6)}
                 for length in sorted(x for x in lengths if x > 1e-4):
                     x = Extension(k, axis, side, length)
                     if evidence.seen_empty(slab_samples(arr, x)):
@@ -112,38 +151,47 @@ def apply(arr, evidence, p: Params, ctx):
     joints = [c.key for c in final.contacts if c.type == "fixed" and c.a in objects
               and not (c.b in objects and objects[c.a] is not None
                        and objects[c.a] == objects[c.b])]
-    for key in joints:
-        i = next((j for j, x in enumerate(final.contacts) if x.key == key and x.type == "fixed"),
-                 None)
-        if i is None:
-            continue
-        c = final.contacts[i]
-        if time.perf_counter() > deadline:
+    pending = joints  # passes until one drops nothing: a joint dropped may free another
+    while pending and time.perf_counter() <= deadline:
+        left = []
+        for key in pending:
+            i = next((j for j, x in enumerate(final.contacts)
+                      if x.key == key and x.type == "fixed"), None)
+            if i is None:
+                continue
+            if time.perf_counter() > deadline:
+                break
+            c = final.contacts[i]
+            contacts = tuple(replace(x, type="touch") if j == i else x
+                             for j, x in enumerate(final.contacts))
+            trial = final.with_(contacts=contacts, stability=None)
+            if final_cs is None:
+                final_cs = find_contacts(trial)
+            group = touching_group(trial, c.a, final_cs)
+            sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
+                              contacts=tuple(x for x in contacts if x.a in group
+                                             and (x.b in group or x.b not in objects)))
+            sub_cs = find_contacts(sub)
+            # the search may have kept a spare joint
+            found = sub if stands(sub, sub_cs) else None
+            if found is None:
+                found = next((g for g, cs in _growths(sub, [c.a, c.b], evidence, p,
+                                                       with_contacts=True, contacts=sub_cs)
+                              if stands(g, cs)), None)
+            if found is None:
+                left.append(key)
+                continue
+            moved = {x.id: x for x in found.cuboids if x is not sub.cuboids[sub.index[x.id]]}
+            v = yield Edit(tuple(moved.values()),
+                           f"glue {c.a}|{c.b} between two objects dropped: the group stands "
+                           f"without it", fixed=tuple(x for x in contacts if x.type == "fixed"))
+            if v.ok:
+                final = v.arrangement
+                final_cs = None
+            else:
+                left.append(key)
+        if len(left) == len(pending):
             break
-        contacts = tuple(replace(x, type="touch") if j == i else x
-                         for j, x in enumerate(final.contacts))
-        trial = final.with_(contacts=contacts, stability=None)
-        if final_cs is None:
-            final_cs = find_contacts(trial)
-        group = touching_group(trial, c.a, final_cs)
-        sub = trial.with_(cuboids=tuple(x for x in trial.cuboids if x.id in group),
-                          contacts=tuple(x for x in contacts
-                                         if x.a in group and (x.b in group or x.b not in objects)))
-        sub_cs = find_contacts(sub)
-        found = sub if stands(sub, sub_cs) else None  # the search may have kept a spare joint
-        if found is None:
-            found = next((g for g, cs in _growths(sub, [c.a, c.b], evidence, p,
-                                                   with_contacts=True, contacts=sub_cs)
-                          if stands(g, cs)), None)
-        if found is None:
-            continue
-        moved = {x.id: x for x in found.cuboids if x is not sub.cuboids[sub.index[x.id]]}
-        v = yield Edit(tuple(moved.values()),
-                       f"glue {c.a}|{c.b} between two objects dropped: the group stands "
-                       f"without it", fixed=tuple(x for x in contacts if x.type == "fixed"))
-        if v.ok:
-            final = v.arrangement
-            final_cs = None
-
+        pending = left
 
 PRIOR = Prior("relax_glue", "settle", Params(), apply, principle_of(__doc__))

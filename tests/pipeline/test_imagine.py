@@ -129,6 +129,58 @@ def test_a_glue_joint_from_a_shallow_looking_box_is_relaxed_to_touch():
     assert not find_contacts(out).penetrations
 
 
+def _leaning_cushion(lean_deg: float, hidden: float):
+    """A sofa's seat and back (one object, fixed) and a cushion of another object leaning
+    ``lean_deg`` on the back with its lower edge on the seat, touching both; and the same
+    cushion as fitted from a view that lost its lower ``hidden`` metres behind the seat
+    cushions, the top end kept."""
+    seat = _observed(box("seat", (0.0, 0.0, 0.2), (1.0, 0.8, 0.4), object="sofa"))
+    back = _observed(box("back", (0.0, 0.5, 0.45), (1.0, 0.2, 0.9), object="sofa"))
+    t = np.radians(lean_deg)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(t), np.sin(t)], [0.0, -np.sin(t), np.cos(t)]])
+    size = np.array([0.5, 0.08, 0.4])
+    up = R[:, 2]  # its long axis, leaning back (towards +y)
+    # its lowest edge on the seat's top (z = 0.4), its rearmost on the back's face (y = 0.4)
+    at0 = box("cushion", (0.0, 0.0, 0.0), size, R, object="cushion").corners()
+    true = box("cushion", (0.0, 0.4 - at0[:, 1].max(), 0.4 - at0[:, 2].min()), size, R,
+               object="cushion")
+    cut = true.with_(center=true.center + up * hidden / 2,
+                     size=size - np.array([0.0, 0.0, hidden]))
+    return seat, back, true, _observed(cut)
+
+
+def test_a_leaning_cushion_glued_to_a_back_grows_its_hidden_lower_end_down_to_the_seat():
+    """A cushion leaning on a sofa's back, seen only above the seat cushions in front of
+    it: its lower end hangs 15 cm over the seat, and the search glues it to the back.
+    Gravity says it rests on what is under it: the glue is dropped, and its lower end
+    grows along its own axis until its lowest edge meets the seat's top, where the true
+    cushion is; it then leans on the back, resting on the seat, and stands (under gravity
+    tilted by 2 degrees) without glue."""
+    from pipeline.search import finalize
+
+    seat, back, true, cut = _leaning_cushion(20.0, 0.15)
+    fixed = [Contact("back", "seat", "fixed")]
+    ok = finalize(Arrangement((seat, back, _observed(true)), (ground(),)), fixed)
+    assert check_stability(ok, tilt_deg=2.0).stable  # the true cushion leans without glue
+    glued = finalize(Arrangement((seat, back, cut), (ground(),)),
+                     [*fixed, Contact("back", "cushion", "fixed")])
+    assert glued.stability.stable
+    from dataclasses import replace
+
+    unglued = glued.with_(contacts=tuple(
+        replace(c, type="touch") if c.key == Contact("back", "cushion").key else c
+        for c in glued.contacts), stability=None)
+    assert not check_stability(unglued).stable  # as fitted, only the glue holds it
+    out, tried, relaxed = relax_fixed(glued)
+    assert (tried, relaxed) == (1, 1)
+    assert_box(out.cuboid("cushion"), true.size, true.center)
+    types = {c.key: c.type for c in out.contacts}
+    assert types[Contact("back", "cushion").key] == "touch"
+    assert types[Contact("cushion", "seat").key] == "touch"
+    assert check_stability(out, tilt_deg=2.0).stable
+    assert not find_contacts(out).penetrations
+
+
 def test_a_needed_glue_joint_and_joints_within_an_object_stay():
     # a shelf board held only by a wall: nothing refinement may do makes it stand
     from pipeline.model import Support
