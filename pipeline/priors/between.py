@@ -16,6 +16,16 @@ loads between them.  The gate keeps it only where it enters nothing and no view 
 space empty.  Without it the search stands each load on the floor by a column of its
 own: as many hidden volumes as loads where one part of the flanking object explains
 them all.
+
+The same sides bound what fills the space between them.  A row of upright boxes
+resting (within ``side_tol``) on a part of the object whose two sides flank them, which
+together fill the width between the sides' inner faces (but for ``side_tol`` at each
+end), is made to fit that space: a sofa's seat cushions from arm to arm, seen only by
+their front faces, go back as far as both arms reach, each face stopping at the near
+face of a box in the way (the back) or of one seen above the space it would fill, up to
+the sides' top (a back cushion whose lower end they hide).  One edit per row, kept only
+where no view saw the added space empty.  A row that leaves a gap, or rests on a box
+of another object, is left to ``deepen``.
 """
 
 from __future__ import annotations
@@ -31,6 +41,8 @@ from ..boxops import (
     free_id,
     horizontal_axes,
     overlap_along,
+    pushed,
+    resting_on,
     same_axes,
     vertical_axis,
     z_range,
@@ -159,6 +171,74 @@ def groups_of(arr, ground: float, p: Params) -> dict[tuple[int, int, int], list]
     return groups
 
 
+def rows_filling(arr, p: Params) -> dict[tuple[int, int, int], list[int]]:
+    """``(lo, hi, ax)`` -> the upright boxes resting (within ``side_tol``) on a part of
+    the object whose upright parts ``lo`` and ``hi`` flank them along their axis ``ax``
+    (:func:`flanked`), where together they fill the width between the two parts' inner
+    faces but for ``side_tol`` at each end."""
+    parts = [j for j, q in enumerate(arr.cuboids)
+             if q.object is not None and vertical_axis(q) is not None]
+    groups: dict[tuple[int, int, int], list[int]] = {}
+    for k in parts:
+        c = arr.cuboids[k]
+        under = resting_on(arr, c, p.side_tol)
+        if under is None or under.object is None or under.object == c.object:
+            continue
+        for key in flanked(arr, k, parts, p):
+            if arr.cuboids[key[0]].object == under.object:
+                groups.setdefault(key, []).append(k)
+    out = {}
+    for (lo, hi, ax), ks in groups.items():
+        u = arr.cuboids[lo].rotation[:, ax]
+        u0, u1 = extent_along(arr.cuboids[lo], u)[1], extent_along(arr.cuboids[hi], u)[0]
+        spans = sorted(tuple(np.clip(extent_along(arr.cuboids[k], u), u0, u1)) for k in ks)
+        covered, end = 0.0, u0
+        for a, b in spans:  # the length of the union of the rows' spans
+            covered += max(0.0, b - max(a, end))
+            end = max(end, b)
+        if covered >= (u1 - u0) - 2 * p.side_tol:
+            out[(lo, hi, ax)] = ks
+    return out
+
+
+def filled(arr, lo: int, hi: int, ax: int, k: int) -> Cuboid | None:
+    """Box ``k`` grown along the horizontal axis of parts ``lo`` and ``hi`` other than
+    ``ax`` over the extent both cover, each face stopping at the near face of a box it
+    would enter, or that enters the space above it up to the lower side's top (what
+    stands there stands in that space: a back cushion).  A box beside it that it enters
+    already (the fit's noise) is not in the way; any other box that the growth enters
+    over ``k``'s middle stops it.  None when it grows nowhere."""
+    A, B = arr.cuboids[lo], arr.cuboids[hi]
+    w = A.rotation[:, next(x for x in horizontal_axes(A) if x != ax)]
+    (a0, a1), (b0, b1) = extent_along(A, w), extent_along(B, w)
+    c = arr.cuboids[k]
+    axis = int(np.argmax(np.abs(c.rotation.T @ w)))
+    sign = 1.0 if float(c.rotation[:, axis] @ w) > 0 else -1.0
+    l0, l1 = extent_along(c, w)
+    mid = 0.5 * (l0 + l1)
+    already = {int(j) for j in entered(arr, c, skip=[k])}  # the fit's noise
+    vax = vertical_axis(c)
+    rise = min(z_range(A)[1], z_range(B)[1]) - z_range(c)[1]  # up to the sides' top
+    for target, side in ((max(a0, b0), -1.0), (min(a1, b1), 1.0)):
+        length = side * (target - (l1 if side > 0 else l0))
+        if length <= 1e-3:
+            continue
+        grown = pushed(c, axis, int(side * sign > 0), length)
+        if rise > 0:  # what is seen above the space stands in it (a back cushion)
+            grown = pushed(grown, vax, int(c.rotation[2, vax] > 0), rise)
+        for j in entered(arr, grown, skip=[k]):
+            e0, e1 = extent_along(arr.cuboids[j], w)
+            if side > 0 and e0 >= mid:
+                length = min(length, e0 - l1)
+            elif side < 0 and e1 <= mid:
+                length = min(length, l0 - e1)
+            elif j not in already:
+                length = 0.0
+        if length > 1e-3:
+            c = pushed(c, axis, int(side * sign > 0), length)
+    return None if c is arr.cuboids[k] else c
+
+
 def apply(arr, evidence, p: Params, ctx):
     ground = floor_height(arr)
     if ground is None:
@@ -170,7 +250,7 @@ def apply(arr, evidence, p: Params, ctx):
                        if arr.cuboids[key[0]].object not in done),
                       key=lambda t: (-len(t[1]), arr.cuboids[t[0][0]].id, arr.cuboids[t[0][1]].id))
         if not todo:
-            return
+            break
         (lo, hi, ax), ms = todo[0]
         obj = arr.cuboids[lo].object
         done.add(obj)  # one hidden part per object
@@ -186,6 +266,24 @@ def apply(arr, evidence, p: Params, ctx):
         if v.ok:
             arr = v.arrangement
             groups = groups_of(arr, ground, p)  # the new part may hold loads of others
+    yield from _fill(arr, p)
+
+
+def _fill(arr, p: Params):
+    """Rows that fill the width between two sides of the object carrying them grow to the
+    depth both sides cover (:func:`rows_filling`, :func:`filled`); one edit per row."""
+    for (lo, hi, ax), ks in sorted(rows_filling(arr, p).items(),
+                                   key=lambda t: (arr.cuboids[t[0][0]].id,
+                                                  arr.cuboids[t[0][1]].id)):
+        grown = [g for g in (filled(arr, lo, hi, ax, k) for k in ks) if g is not None]
+        if not grown:
+            continue
+        names = ", ".join(sorted(g.id for g in grown))
+        v = yield Edit(tuple(grown), f"{names} fill the width between {arr.cuboids[lo].id} "
+                                     f"and {arr.cuboids[hi].id} of "
+                                     f"{arr.cuboids[lo].object}: as deep as both cover")
+        if v.ok:
+            arr = v.arrangement
 
 
 PRIOR = Prior("between", "complete", Params(), apply, principle_of(__doc__))

@@ -161,3 +161,51 @@ def test_the_hidden_part_takes_a_free_id():
     clash = _xyz("sofa_under", 2.0, 2.2, 2.0, 2.2, 0.0, 0.2, "stool")  # far away
     out, ids = changed("between", Arrangement(arr.cuboids + (clash,), arr.supports))
     assert ids == ["sofa_under1"] and out.cuboid("sofa_under") == clash
+
+
+def _seated(gaps=(0.0, 0.0), back_in=False, leaning=False, under_obj="sofa"):
+    """A sofa's two arms (x from -0.8 to -0.65 and 0.65 to 0.8, y from -0.3 to 0.3), its
+    seat under them and a back behind them (y from 0.3; with ``back_in`` between them,
+    from y = 0.15), and a row of three cushions on the seat, each fitted from its front
+    face 0.2 m deep (y from -0.3 to -0.1), ``gaps`` between them along the row; with
+    ``leaning``, a back cushion seen above the seat behind them (y from 0.0 to 0.1, its
+    lower end hidden behind them)."""
+    arms = [_xyz("armA", -0.80, -0.65, -0.3, 0.3, 0.0, 0.60, "sofa"),
+            _xyz("armB", 0.65, 0.80, -0.3, 0.3, 0.0, 0.60, "sofa")]
+    back = _xyz("back", -0.65, 0.65, 0.15 if back_in else 0.3, 0.45, 0.0, 0.90, "sofa")
+    seat = _xyz("seat", -0.65, 0.65, -0.3, 0.15 if back_in else 0.3, 0.0, SEAT, under_obj)
+    g0, g1 = gaps
+    xs = ((-0.65, -0.22 - g0 / 2), (-0.22 + g0 / 2, 0.22 - g1 / 2), (0.22 + g1 / 2, 0.65))
+    cushions = [_xyz(f"c{i}", x0, x1, -0.3, -0.1, SEAT, SEAT + 0.12, f"cushion{i}")
+                for i, (x0, x1) in enumerate(xs)]
+    extra = [_xyz("lean", -0.6, 0.6, 0.0, 0.1, SEAT + 0.12, 0.80, "cushion9")] if leaning else []
+    return Arrangement(tuple(arms + [back, seat] + cushions + extra), (ground(),))
+
+
+def test_a_row_filling_the_width_between_the_arms_goes_back_as_deep_as_the_arms():
+    """Cushions seen by their front faces, filling the width between the arms of the
+    sofa whose seat carries them, go back as far as both arms reach; with the back
+    between the arms, to its front face; with a cushion standing behind them, above the
+    space they would fill, to its front face; nothing else changes."""
+    out, ids = changed("between", _seated())
+    assert ids == ["c0", "c1", "c2"]
+    for c, x in zip(("c0", "c1", "c2"), ((-0.65, -0.22), (-0.22, 0.22), (0.22, 0.65))):
+        assert_box(out.cuboid(c), (x[1] - x[0], DEPTH, 0.12),
+                   ((x[0] + x[1]) / 2, 0.0, SEAT + 0.06))
+    assert not find_contacts(out).penetrations
+    out, ids = changed("between", _seated(back_in=True))
+    assert ids == ["c0", "c1", "c2"]
+    assert out.cuboid("c1").size[1] == pytest.approx(0.45)  # y from -0.3 to 0.15
+    out, ids = changed("between", _seated(leaning=True))
+    assert ids == ["c0", "c1", "c2"]
+    assert out.cuboid("c1").size[1] == pytest.approx(0.3)  # y from -0.3 to 0.0
+
+
+def test_a_row_that_does_not_fill_the_width_or_rests_on_another_object_stays():
+    # gaps along the row: up to twice side_tol in all is the fit's noise, more is a gap
+    for gaps, fills in (((0.029, 0.03), True), ((0.031, 0.031), False)):
+        out, ids = changed("between", _seated(gaps=gaps))
+        assert (ids == ["c0", "c1", "c2"]) is fills, gaps
+    # carried by a box of another object between the arms (a crate), not by the sofa
+    out, ids = changed("between", _seated(under_obj="crate"))
+    assert ids == []
