@@ -58,6 +58,7 @@ class Params:
     #: its top, and a box under the load may reach above its bottom
     side_tol: float = 0.03
     cover_min: float = 0.5  #: least share of the load's extent along the sides that each covers
+    fill: bool = True  #: rows filling the width between two sides go back as far as they reach
 
 
 def _column(c: Cuboid, ground: float, bottom: float) -> Cuboid:
@@ -266,7 +267,8 @@ def apply(arr, evidence, p: Params, ctx):
         if v.ok:
             arr = v.arrangement
             groups = groups_of(arr, ground, p)  # the new part may hold loads of others
-    yield from _fill(arr, p)
+    if p.fill:
+        yield from _fill(arr, p)
 
 
 def _fill(arr, p: Params):

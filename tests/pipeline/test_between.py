@@ -193,6 +193,8 @@ def test_a_row_filling_the_width_between_the_arms_goes_back_as_deep_as_the_arms(
         assert_box(out.cuboid(c), (x[1] - x[0], DEPTH, 0.12),
                    ((x[0] + x[1]) / 2, 0.0, SEAT + 0.06))
     assert not find_contacts(out).penetrations
+    out, ids = changed("between", _seated(), params={"between": {"fill": False}})
+    assert ids == []  # the rule's ablation
     out, ids = changed("between", _seated(back_in=True))
     assert ids == ["c0", "c1", "c2"]
     assert out.cuboid("c1").size[1] == pytest.approx(0.45)  # y from -0.3 to 0.15
