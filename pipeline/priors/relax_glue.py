@@ -151,9 +151,13 @@ def apply(arr, evidence, p: Params, ctx):
     joints = [c.key for c in final.contacts if c.type == "fixed" and c.a in objects
               and not (c.b in objects and objects[c.a] is not None
                        and objects[c.a] == objects[c.b])]
-    pending = joints  # passes until one drops nothing: a joint dropped may free another
+    # passes until one drops nothing: a joint dropped may free another.  A joint is tried
+    # again only when a drop after its try reached its group (the dropped joint's group,
+    # and what its grown boxes touch after the drop): otherwise its try comes out the same
+    drops: list[set] = []
+    pending = joints
     while pending and time.perf_counter() <= deadline:
-        left = []
+        left = []  # (joint, its group, drops before its try)
         for key in pending:
             i = next((j for j, x in enumerate(final.contacts)
                       if x.key == key and x.type == "fixed"), None)
@@ -179,7 +183,7 @@ def apply(arr, evidence, p: Params, ctx):
                                                        with_contacts=True, contacts=sub_cs)
                               if stands(g, cs)), None)
             if found is None:
-                left.append(key)
+                left.append((key, set(group), len(drops)))
                 continue
             moved = {x.id: x for x in found.cuboids if x is not sub.cuboids[sub.index[x.id]]}
             v = yield Edit(tuple(moved.values()),
@@ -187,11 +191,12 @@ def apply(arr, evidence, p: Params, ctx):
                            f"without it", fixed=tuple(x for x in contacts if x.type == "fixed"))
             if v.ok:
                 final = v.arrangement
-                final_cs = None
+                final_cs = find_contacts(final)
+                # its group, and what the grown boxes touch now
+                near = {q for pair in final_cs.pairs if set(pair) & set(moved) for q in pair}
+                drops.append(set(group) | near)
             else:
-                left.append(key)
-        if len(left) == len(pending):
-            break
-        pending = left
+                left.append((key, set(group), len(drops)))
+        pending = [key for key, group, n in left if any(group & d for d in drops[n:])]
 
 PRIOR = Prior("relax_glue", "settle", Params(), apply, principle_of(__doc__))
