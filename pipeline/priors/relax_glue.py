@@ -12,10 +12,11 @@ centre or far side; the lower end, along the box's own axis (a leaning box too),
 its lowest point meets the floor or the top of a box under that end, by no more than
 the largest growth of its largest extent (a cushion leaning on a sofa's back, seen only
 above the seat cushions in front of it: gravity says it rests on the seat; a board on
-a wall is no pillar down to the floor).  The first variant under which the group stands with gravity tilted
-by :data:`pipeline.search.ROBUST_TILT_DEG` is kept.  The joints are taken in passes until
-one drops none (a joint dropped may be what held another up).  Joints within one object
-are what holds it together and stay.
+a wall is no pillar down to the floor).  The first variant under which the group stands
+with gravity tilted by :data:`pipeline.search.ROBUST_TILT_DEG` is kept.  The joints are
+taken in passes until one drops none (a joint dropped may be what held another up; a
+joint is tried again only where a drop reached its group).  Joints within one object are
+what holds it together and stay.
 """
 
 from __future__ import annotations
