@@ -87,14 +87,32 @@ def loads(arr, ground: float, p: Params) -> list[tuple[int, float]]:
     return out
 
 
-def flanked(arr, k: int, parts: list[int], p: Params):
+def _parts(arr) -> list[int]:
+    """Indices of the upright boxes of ``arr`` that are parts of an object."""
+    return [j for j, q in enumerate(arr.cuboids)
+            if q.object is not None and vertical_axis(q) is not None]
+
+
+def _across(A: Cuboid, ax: int) -> np.ndarray:
+    """The unit vector of ``A``'s horizontal axis other than ``ax``."""
+    return A.rotation[:, next(x for x in horizontal_axes(A) if x != ax)]
+
+
+def _both_cover(A: Cuboid, B: Cuboid, w: np.ndarray) -> tuple[float, float]:
+    """The extent along ``w`` that both ``A`` and ``B`` cover."""
+    (a0, a1), (b0, b1) = extent_along(A, w), extent_along(B, w)
+    return max(a0, b0), min(a1, b1)
+
+
+def flanked(arr, k: int, parts: list[int], p: Params, of_object: str | None = None):
     """``(a, b, ax)``: pairs of ``parts`` (upright parts of objects) of one object, not
-    ``k``'s, beside box ``k`` (their heights overlap its own, within ``side_tol``) on
-    opposite sides of it along their local horizontal axis ``ax`` (``a`` on the low
-    side)."""
+    ``k``'s (``of_object``: of that one only), beside box ``k`` (their heights overlap
+    its own, within ``side_tol``) on opposite sides of it along their local horizontal
+    axis ``ax`` (``a`` on the low side)."""
     c = arr.cuboids[k]
     bottom, top = z_range(c)
     sides = [j for j in parts if j != k and arr.cuboids[j].object != c.object
+             and (of_object is None or arr.cuboids[j].object == of_object)
              and z_range(arr.cuboids[j])[1] > bottom
              and z_range(arr.cuboids[j])[0] < top + p.side_tol]
     out = []
@@ -104,10 +122,8 @@ def flanked(arr, k: int, parts: list[int], p: Params):
             B = arr.cuboids[b]
             if B.object != A.object or not same_axes(A, B):
                 continue
-            ax_h = horizontal_axes(A)
-            for ax in ax_h:
-                u = A.rotation[:, ax]
-                w = A.rotation[:, next(x for x in ax_h if x != ax)]
+            for ax in horizontal_axes(A):
+                u, w = A.rotation[:, ax], _across(A, ax)
                 l0, l1 = extent_along(c, u)
                 lo, hi = sorted((a, b), key=lambda j: extent_along(arr.cuboids[j], u)[0])
                 if (extent_along(arr.cuboids[lo], u)[1] > l0 + p.side_tol
@@ -127,13 +143,11 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
     the near face of a box it would enter at one end; None when it would enter one over
     the loads' middle."""
     A, B = arr.cuboids[lo], arr.cuboids[hi]
-    ax_h = horizontal_axes(A)
-    aw = next(x for x in ax_h if x != ax)
+    aw = next(x for x in horizontal_axes(A) if x != ax)
     az = vertical_axis(A)
     u, w = A.rotation[:, ax], A.rotation[:, aw]
     u0, u1 = extent_along(A, u)[1], extent_along(B, u)[0]
-    (a0, a1), (b0, b1) = extent_along(A, w), extent_along(B, w)
-    w0, w1 = max(a0, b0), min(a1, b1)
+    w0, w1 = _both_cover(A, B, w)
     mid = float(np.mean([arr.cuboids[m].center @ w for m in members]))
     ids = {arr.cuboids[m].id for m in members}
     name = free_id(arr, f"{A.object}_under")
@@ -163,8 +177,7 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
 def groups_of(arr, ground: float, p: Params) -> dict[tuple[int, int, int], list]:
     """``(lo, hi, ax)`` -> the ``(k, bottom)`` of the loads (:func:`loads`) that the pair
     of parts ``lo`` and ``hi`` flanks along their axis ``ax`` (:func:`flanked`)."""
-    parts = [j for j, q in enumerate(arr.cuboids)
-             if q.object is not None and vertical_axis(q) is not None]
+    parts = _parts(arr)
     groups: dict[tuple[int, int, int], list] = {}
     for k, bottom in loads(arr, ground, p):
         for key in flanked(arr, k, parts, p):
@@ -177,17 +190,15 @@ def rows_filling(arr, p: Params) -> dict[tuple[int, int, int], list[int]]:
     the object whose upright parts ``lo`` and ``hi`` flank them along their axis ``ax``
     (:func:`flanked`), where together they fill the width between the two parts' inner
     faces but for ``side_tol`` at each end."""
-    parts = [j for j, q in enumerate(arr.cuboids)
-             if q.object is not None and vertical_axis(q) is not None]
+    parts = _parts(arr)
     groups: dict[tuple[int, int, int], list[int]] = {}
     for k in parts:
         c = arr.cuboids[k]
         under = resting_on(arr, c, p.side_tol)
         if under is None or under.object is None or under.object == c.object:
             continue
-        for key in flanked(arr, k, parts, p):
-            if arr.cuboids[key[0]].object == under.object:
-                groups.setdefault(key, []).append(k)
+        for key in flanked(arr, k, parts, p, of_object=under.object):
+            groups.setdefault(key, []).append(k)
     out = {}
     for (lo, hi, ax), ks in groups.items():
         u = arr.cuboids[lo].rotation[:, ax]
@@ -210,8 +221,8 @@ def filled(arr, lo: int, hi: int, ax: int, k: int) -> Cuboid | None:
     already (the fit's noise) is not in the way; any other box that the growth enters
     over ``k``'s middle stops it.  None when it grows nowhere."""
     A, B = arr.cuboids[lo], arr.cuboids[hi]
-    w = A.rotation[:, next(x for x in horizontal_axes(A) if x != ax)]
-    (a0, a1), (b0, b1) = extent_along(A, w), extent_along(B, w)
+    w = _across(A, ax)
+    w0, w1 = _both_cover(A, B, w)
     c = arr.cuboids[k]
     axis = int(np.argmax(np.abs(c.rotation.T @ w)))
     sign = 1.0 if float(c.rotation[:, axis] @ w) > 0 else -1.0
@@ -220,7 +231,7 @@ def filled(arr, lo: int, hi: int, ax: int, k: int) -> Cuboid | None:
     already = {int(j) for j in entered(arr, c, skip=[k])}  # the fit's noise
     vax = vertical_axis(c)
     rise = min(z_range(A)[1], z_range(B)[1]) - z_range(c)[1]  # up to the sides' top
-    for target, side in ((max(a0, b0), -1.0), (min(a1, b1), 1.0)):
+    for target, side in ((w0, -1.0), (w1, 1.0)):
         length = side * (target - (l1 if side > 0 else l0))
         if length <= 1e-3:
             continue
