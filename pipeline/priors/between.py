@@ -15,7 +15,10 @@ face of a box it would enter at one end), from the floor up to the lowest bottom
 loads between them.  The gate keeps it only where it enters nothing and no view saw its
 space empty.  Without it the search stands each load on the floor by a column of its
 own: as many hidden volumes as loads where one part of the flanking object explains
-them all.
+them all.  A part of that object standing on the floor between the two sides, seen
+only in part (a seat seen by a strip of its top between the cushions on it, taken down
+to the floor as a panel), is that part: where it is the one box the hidden part would
+enter, it grows into it, keeping what was seen of it (``seen_part``).
 
 The same sides bound what fills the space between them.  A row of upright boxes
 resting (within ``side_tol``) on a part of the object whose two sides flank them, which
@@ -59,6 +62,9 @@ class Params:
     side_tol: float = 0.03
     cover_min: float = 0.5  #: least share of the load's extent along the sides that each covers
     fill: bool = True  #: rows filling the width between two sides go back as far as they reach
+    #: a part of the object standing on the floor between the sides, seen in part, is the
+    #: part under the loads (it grows into it)
+    seen_part: bool = True
 
 
 def _column(c: Cuboid, ground: float, bottom: float) -> Cuboid:
@@ -70,9 +76,9 @@ def _column(c: Cuboid, ground: float, bottom: float) -> Cuboid:
     return Cuboid(c.id, centre, c.rotation, size, c.density)
 
 
-def loads(arr, ground: float, p: Params) -> list[tuple[int, float]]:
-    """``(k, bottom)`` of the upright boxes ``min_height`` or more above the floor with no
-    box under them (their column down to the floor enters none that ends below them)."""
+def loads(arr, ground: float, p: Params) -> list[tuple[int, float, tuple[int, ...]]]:
+    """``(k, bottom, under)`` of the upright boxes ``min_height`` or more above the floor,
+    ``under`` the boxes their column down to the floor enters that end below them."""
     out = []
     for k, c in enumerate(arr.cuboids):
         if vertical_axis(c) is None:
@@ -82,9 +88,20 @@ def loads(arr, ground: float, p: Params) -> list[tuple[int, float]]:
             continue
         under = [j for j in entered(arr, _column(c, ground, bottom), skip=[k])
                  if z_range(arr.cuboids[j])[1] < bottom + p.side_tol]  # not one beside it
-        if not under:
-            out.append((k, bottom))
+        out.append((k, bottom, tuple(int(j) for j in under)))
     return out
+
+
+def _inside(arr, j: int, lo: int, hi: int, ax: int, p: Params, ground: float) -> bool:
+    """Whether box ``j`` is a part of the object of ``lo`` and ``hi`` standing on the
+    floor (within ``side_tol``) between their inner faces along their axis ``ax``
+    (within ``side_tol``): not a board the sides hold."""
+    A, B, c = arr.cuboids[lo], arr.cuboids[hi], arr.cuboids[j]
+    if c.object != A.object or z_range(c)[0] > ground + p.side_tol:
+        return False
+    u = A.rotation[:, ax]
+    c0, c1 = extent_along(c, u)
+    return c0 > extent_along(A, u)[1] - p.side_tol and c1 < extent_along(B, u)[0] + p.side_tol
 
 
 def _parts(arr) -> list[int]:
@@ -137,11 +154,13 @@ def flanked(arr, k: int, parts: list[int], p: Params, of_object: str | None = No
 
 
 def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: float,
-                  top: float) -> Cuboid | None:
+                  top: float, p: Params = Params()) -> Cuboid | None:
     """The box between parts ``lo`` and ``hi`` (along their axis ``ax``) under the loads
     ``members``, from the floor to ``top``, cut back along the other horizontal axis at
     the near face of a box it would enter at one end; None when it would enter one over
-    the loads' middle."""
+    the loads' middle.  Where the one box it enters is a part of that object standing on
+    the floor between the two, no higher than ``top`` (with ``seen_part``), that part
+    grown to hold the box instead (None when it holds it already)."""
     A, B = arr.cuboids[lo], arr.cuboids[hi]
     aw = next(x for x in horizontal_axes(A) if x != ax)
     az = vertical_axis(A)
@@ -161,6 +180,15 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
         box = Cuboid(name, centre, A.rotation, size, A.density, A.object, None,
                      {"hallucinated": True, "points": 0})
         hit = [j for j in entered(arr, box) if arr.cuboids[j].id not in ids]
+        seen = [j for j in hit if _inside(arr, j, lo, hi, ax, p, ground)
+                and same_axes(arr.cuboids[j], A)
+                and z_range(arr.cuboids[j])[1] < top + p.side_tol]
+        if p.seen_part and len(seen) == 1 and len(hit) == 1:  # that part is the one
+            part = arr.cuboids[seen[0]]
+            grown = _grown_into(part, box)
+            if np.allclose(grown.size, part.size, atol=1e-6):
+                return None  # it fills that space already
+            return grown
         if not hit:
             return box
         for j in hit:
@@ -174,14 +202,33 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
     return None
 
 
+def _grown_into(part: Cuboid, box: Cuboid) -> Cuboid:
+    """``part`` grown to hold ``box`` (both square to each other): the part of the object
+    seen in part keeps its name, object, axes and what was seen of it."""
+    R = part.rotation
+    lo_, hi_ = np.zeros(3), np.zeros(3)
+    for i in range(3):
+        (a0, a1), (b0, b1) = extent_along(part, R[:, i]), extent_along(box, R[:, i])
+        lo_[i], hi_[i] = min(a0, b0), max(a1, b1)
+    extra = {k: v for k, v in part.extra.items() if k != "hallucinated"}
+    return Cuboid(part.id, R @ (0.5 * (lo_ + hi_)), R, hi_ - lo_, part.density, part.object,
+                  part.observed, extra)
+
+
 def groups_of(arr, ground: float, p: Params) -> dict[tuple[int, int, int], list]:
     """``(lo, hi, ax)`` -> the ``(k, bottom)`` of the loads (:func:`loads`) that the pair
-    of parts ``lo`` and ``hi`` flanks along their axis ``ax`` (:func:`flanked`)."""
+    of parts ``lo`` and ``hi`` flanks along their axis ``ax`` (:func:`flanked`), with
+    nothing under them or (with ``seen_part``) only parts of that object standing on the
+    floor between the two."""
     parts = _parts(arr)
     groups: dict[tuple[int, int, int], list] = {}
-    for k, bottom in loads(arr, ground, p):
+    for k, bottom, under in loads(arr, ground, p):
         for key in flanked(arr, k, parts, p):
-            groups.setdefault(key, []).append((k, bottom))
+            # nothing under it, or only a part of that object standing on the floor
+            # between its sides, seen in part (a seat's top between the cushions on it)
+            if not under or (p.seen_part and all(_inside(arr, j, *key, p, ground)
+                                                 for j in under)):
+                groups.setdefault(key, []).append((k, bottom))
     return groups
 
 
@@ -267,14 +314,16 @@ def apply(arr, evidence, p: Params, ctx):
         obj = arr.cuboids[lo].object
         done.add(obj)  # one hidden part per object
         top = min(b for _k, b in ms)
-        box = under_between(arr, lo, hi, ax, [k for k, _b in ms], ground, top)
+        box = under_between(arr, lo, hi, ax, [k for k, _b in ms], ground, top, p)
         if box is None:
             continue
         names = ", ".join(sorted(arr.cuboids[k].id for k, _b in ms))
+        carrier = (f"{box.id}, a part of {obj} seen in part, grows under them from side "
+                   "to side" if any(c.id == box.id for c in arr.cuboids)
+                   else f"a hidden part of {obj} carries them")
         v = yield Edit((box,), f"{names} between {arr.cuboids[lo].id} and "
                                f"{arr.cuboids[hi].id} of {obj}, {top - ground:.2f} m above "
-                               f"the floor with nothing under them: a hidden part of {obj} "
-                               f"carries them")
+                               f"the floor with nothing else under them: {carrier}")
         if v.ok:
             arr = v.arrangement
             groups = groups_of(arr, ground, p)  # the new part may hold loads of others

@@ -156,6 +156,51 @@ def test_the_whole_pipeline_stands_the_cushions_on_the_hidden_part_not_on_column
     assert grounded == {"c0", "c1", "c2"}
 
 
+@pytest.mark.parametrize("lift, top, grows", [(0.0, SEAT - 0.07, True), (0.02, SEAT - 0.07, True),
+                                             (0.04, SEAT - 0.07, False), (0.0, SEAT, True)])
+def test_a_part_of_the_sofa_seen_in_part_between_its_arms_is_the_one_under_the_cushions(
+        lift, top, grows):
+    # the seat seen only by a strip of its top between the cushions (under their bottom
+    # or up to it), taken down to the floor as a thin panel: it grows under the cushions
+    # from arm to arm instead of a hidden part beside it.  A panel not standing on the
+    # floor (more than side_tol up) is a board the arms hold.  (A seat filling that space
+    # already, as in _seated, is left as it is: the fill test below.)
+    arr = _sofa()
+    strip = _xyz("seat", -0.60, 0.60, 0.10, 0.13, lift, top, "sofa")
+    out, ids = changed("between", Arrangement(arr.cuboids + (strip,), arr.supports))
+    if not grows:
+        assert ids == [] and out.cuboid("seat") == strip
+        return
+    assert ids == ["seat"]
+    seat = out.cuboid("seat")
+    # the box the hidden part would be (from arm to arm, as deep as the arms, from the
+    # floor up to the cushions), holding the strip
+    assert_box(seat, (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
+    assert seat.object == "sofa" and "hallucinated" not in seat.extra
+    assert [c.id for c in out.cuboids if c.id.startswith("sofa_under")] == []
+    contacts = find_contacts(out)
+    assert not contacts.penetrations
+    pairs = {frozenset((contacts.names[a], contacts.names[b]))
+             for a, b in zip(contacts.a, contacts.b)}
+    for k in ("c0", "c1", "c2", "armA", "armB", "ground"):
+        assert frozenset((k, "seat")) in pairs, k
+    # the rule's ablation: the strip is in the way, and no hidden part is added
+    out, ids = changed("between", Arrangement(arr.cuboids + (strip,), arr.supports),
+                       params={"between": {"seen_part": False}})
+    assert ids == []
+
+
+def test_two_parts_seen_under_the_cushions_are_not_merged_into_one():
+    # two strips: neither is the one part; the hidden part stops at their near faces
+    arr = _sofa()
+    strips = (_xyz("s1", -0.60, -0.05, 0.10, 0.13, 0.0, SEAT - 0.07, "sofa"),
+              _xyz("s2", 0.05, 0.60, 0.10, 0.13, 0.0, SEAT - 0.07, "sofa"))
+    out, ids = changed("between", Arrangement(arr.cuboids + strips, arr.supports))
+    assert ids == ["sofa_under"]
+    assert_box(out.cuboid("sofa_under"), (1.30, 0.40, SEAT), (0.0, -0.10, SEAT / 2))
+    assert out.cuboid("s1") == strips[0] and out.cuboid("s2") == strips[1]
+
+
 def test_the_hidden_part_takes_a_free_id():
     arr = _sofa()
     clash = _xyz("sofa_under", 2.0, 2.2, 2.0, 2.2, 0.0, 0.2, "stool")  # far away
