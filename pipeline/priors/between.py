@@ -18,7 +18,9 @@ own: as many hidden volumes as loads where one part of the flanking object expla
 them all.  A part of that object standing on the floor between the two sides, seen
 only in part (a seat seen by a strip of its top between the cushions on it, taken down
 to the floor as a panel), is that part: where it is the one box the hidden part would
-enter, it grows into it, keeping what was seen of it (``seen_part``).
+enter, it grows into it, keeping what was seen of it; where its top lies more than
+``side_tol`` under the loads, that top was seen and the part ends there, and the loads,
+seen by their tops, reach down to it (``seen_part``).
 
 The same sides bound what fills the space between them.  A row of upright boxes
 resting (within ``side_tol``) on a part of the object whose two sides flank them, which
@@ -65,6 +67,13 @@ class Params:
     #: a part of the object standing on the floor between the sides, seen in part, is the
     #: part under the loads (it grows into it)
     seen_part: bool = True
+
+
+def _vertical_face(c: Cuboid, top: bool) -> tuple[int, int]:
+    """``(axis, side)`` of upright box ``c``'s top (``top``) or bottom face, as
+    :func:`pipeline.boxops.pushed` takes them."""
+    ax = vertical_axis(c)
+    return ax, int((c.rotation[2, ax] > 0) == top)
 
 
 def _column(c: Cuboid, ground: float, bottom: float) -> Cuboid:
@@ -276,7 +285,6 @@ def filled(arr, lo: int, hi: int, ax: int, k: int) -> Cuboid | None:
     l0, l1 = extent_along(c, w)
     mid = 0.5 * (l0 + l1)
     already = {int(j) for j in entered(arr, c, skip=[k])}  # the fit's noise
-    vax = vertical_axis(c)
     rise = min(z_range(A)[1], z_range(B)[1]) - z_range(c)[1]  # up to the sides' top
     for target, side in ((w0, -1.0), (w1, 1.0)):
         length = side * (target - (l1 if side > 0 else l0))
@@ -284,7 +292,7 @@ def filled(arr, lo: int, hi: int, ax: int, k: int) -> Cuboid | None:
             continue
         grown = pushed(c, axis, int(side * sign > 0), length)
         if rise > 0:  # what is seen above the space stands in it (a back cushion)
-            grown = pushed(grown, vax, int(c.rotation[2, vax] > 0), rise)
+            grown = pushed(grown, *_vertical_face(c, True), rise)
         for j in entered(arr, grown, skip=[k]):
             e0, e1 = extent_along(arr.cuboids[j], w)
             if side > 0 and e0 >= mid:
@@ -318,10 +326,19 @@ def apply(arr, evidence, p: Params, ctx):
         if box is None:
             continue
         names = ", ".join(sorted(arr.cuboids[k].id for k, _b in ms))
-        carrier = (f"{box.id}, a part of {obj} seen in part, grows under them from side "
-                   "to side" if any(c.id == box.id for c in arr.cuboids)
-                   else f"a hidden part of {obj} carries them")
-        v = yield Edit((box,), f"{names} between {arr.cuboids[lo].id} and "
+        part = arr.cuboid(box.id) if box.id in arr.index else None  # a part seen in part
+        carrier = f"a hidden part of {obj} carries them"
+        lowered: tuple = ()
+        if part is not None:
+            carrier = f"{box.id}, a part of {obj} seen in part, grows under them from side to side"
+            ptop = z_range(part)[1]
+            if ptop < top - p.side_tol:
+                # its top was seen: the part ends there, and the loads reach down to it
+                box = pushed(box, *_vertical_face(box, True), ptop - top)
+                lowered = tuple(pushed(arr.cuboids[k], *_vertical_face(arr.cuboids[k], False),
+                                       b - ptop) for k, b in ms)
+                carrier += f" up to its top, {ptop - ground:.2f} m, and they reach down to it"
+        v = yield Edit((box, *lowered), f"{names} between {arr.cuboids[lo].id} and "
                                f"{arr.cuboids[hi].id} of {obj}, {top - ground:.2f} m above "
                                f"the floor with nothing else under them: {carrier}")
         if v.ok:

@@ -171,11 +171,20 @@ def test_a_part_of_the_sofa_seen_in_part_between_its_arms_is_the_one_under_the_c
     if not grows:
         assert ids == [] and out.cuboid("seat") == strip
         return
-    assert ids == ["seat"]
     seat = out.cuboid("seat")
     # the box the hidden part would be (from arm to arm, as deep as the arms, from the
-    # floor up to the cushions), holding the strip
-    assert_box(seat, (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
+    # floor), holding the strip: up to the cushions when the strip reaches them, else
+    # up to the strip's top (what was seen of it), the cushions reaching down to it
+    assert_box(seat, (1.30, DEPTH, top), (0.0, 0.0, top / 2))
+    if top < SEAT:
+        assert ids == ["seat", "c0", "c1", "c2"]
+        for k in ("c0", "c1", "c2"):
+            c, c0 = out.cuboid(k), arr.cuboid(k)
+            np.testing.assert_allclose(c.size, c0.size + [0.0, 0.0, SEAT - top], atol=1e-9)
+            np.testing.assert_allclose(c.center, c0.center - [0.0, 0.0, (SEAT - top) / 2],
+                                       atol=1e-9)
+    else:
+        assert ids == ["seat"]
     assert seat.object == "sofa" and "hallucinated" not in seat.extra
     assert [c.id for c in out.cuboids if c.id.startswith("sofa_under")] == []
     contacts = find_contacts(out)
