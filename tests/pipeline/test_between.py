@@ -44,6 +44,17 @@ def _view(arr, eye, target=(0.0, 0.0, 0.3)):
     return [DepthView(_depth_of_boxes(list(arr.cuboids), T, intr), intr, T)]
 
 
+def _assert_carries(arr, part):
+    """Nothing in ``arr`` interpenetrates, and ``part`` touches the three cushions, both
+    arms and the floor."""
+    contacts = find_contacts(arr)
+    assert not contacts.penetrations
+    pairs = {frozenset((contacts.names[a], contacts.names[b]))
+             for a, b in zip(contacts.a, contacts.b)}
+    for k in ("c0", "c1", "c2", "armA", "armB", "ground"):
+        assert frozenset((k, part)) in pairs, k
+
+
 def test_cushions_between_a_sofas_arms_rest_on_one_hidden_part_of_it():
     arr = _sofa()
     out, ids = changed("between", arr)
@@ -52,12 +63,7 @@ def test_cushions_between_a_sofas_arms_rest_on_one_hidden_part_of_it():
     # from arm to arm, as deep as the arms, from the floor up to the cushions
     assert_box(under, (1.30, DEPTH, SEAT), (0.0, 0.0, SEAT / 2))
     assert under.object == "sofa" and under.extra["hallucinated"]
-    contacts = find_contacts(out)
-    assert not contacts.penetrations
-    pairs = {frozenset((contacts.names[a], contacts.names[b]))
-             for a, b in zip(contacts.a, contacts.b)}
-    for k in ("c0", "c1", "c2", "armA", "armB", "ground"):
-        assert frozenset((k, "sofa_under")) in pairs, k
+    _assert_carries(out, "sofa_under")
 
 
 def test_the_hidden_part_stops_at_the_back_that_runs_between_the_arms():
@@ -187,12 +193,7 @@ def test_a_part_of_the_sofa_seen_in_part_between_its_arms_is_the_one_under_the_c
         assert ids == ["seat"]
     assert seat.object == "sofa" and "hallucinated" not in seat.extra
     assert [c.id for c in out.cuboids if c.id.startswith("sofa_under")] == []
-    contacts = find_contacts(out)
-    assert not contacts.penetrations
-    pairs = {frozenset((contacts.names[a], contacts.names[b]))
-             for a, b in zip(contacts.a, contacts.b)}
-    for k in ("c0", "c1", "c2", "armA", "armB", "ground"):
-        assert frozenset((k, "seat")) in pairs, k
+    _assert_carries(out, "seat")
     # the rule's ablation: the strip is in the way, and no hidden part is added
     out, ids = changed("between", Arrangement(arr.cuboids + (strip,), arr.supports),
                        params={"between": {"seen_part": False}})
