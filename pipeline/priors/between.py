@@ -45,6 +45,7 @@ from ..boxops import (
     floor_height,
     free_id,
     horizontal_axes,
+    merged,
     overlap_along,
     pushed,
     resting_on,
@@ -169,7 +170,8 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
     the near face of a box it would enter at one end; None when it would enter one over
     the loads' middle.  Where the one box it enters is a part of that object standing on
     the floor between the two, no higher than ``top`` (with ``seen_part``), that part
-    grown to hold the box instead (None when it holds it already)."""
+    grown to hold the box instead, up to its own top where that lies more than
+    ``side_tol`` under ``top`` (None when it holds it already)."""
     A, B = arr.cuboids[lo], arr.cuboids[hi]
     aw = next(x for x in horizontal_axes(A) if x != ax)
     az = vertical_axis(A)
@@ -189,15 +191,18 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
         box = Cuboid(name, centre, A.rotation, size, A.density, A.object, None,
                      {"hallucinated": True, "points": 0})
         hit = [j for j in entered(arr, box) if arr.cuboids[j].id not in ids]
-        seen = [j for j in hit if _inside(arr, j, lo, hi, ax, p, ground)
-                and same_axes(arr.cuboids[j], A)
-                and z_range(arr.cuboids[j])[1] < top + p.side_tol]
-        if p.seen_part and len(seen) == 1 and len(hit) == 1:  # that part is the one
-            part = arr.cuboids[seen[0]]
-            grown = _grown_into(part, box)
-            if np.allclose(grown.size, part.size, atol=1e-6):
-                return None  # it fills that space already
-            return grown
+        if p.seen_part and len(hit) == 1:
+            part = arr.cuboids[hit[0]]
+            ptop = z_range(part)[1]
+            if (_inside(arr, hit[0], lo, hi, ax, p, ground) and same_axes(part, A)
+                    and ptop < top + p.side_tol):  # that part, seen in part, is the one
+                below = ptop < top - p.side_tol
+                if below:  # its top was seen: it ends there (the loads reach down to it)
+                    box = pushed(box, *_vertical_face(box, True), ptop - top)
+                grown = merged(part, box).with_(observed=part.observed)
+                if not below and np.allclose(grown.size, part.size, atol=1e-6):
+                    return None  # it fills that space and carries the loads already
+                return grown
         if not hit:
             return box
         for j in hit:
@@ -209,19 +214,6 @@ def under_between(arr, lo: int, hi: int, ax: int, members: list[int], ground: fl
             else:
                 return None
     return None
-
-
-def _grown_into(part: Cuboid, box: Cuboid) -> Cuboid:
-    """``part`` grown to hold ``box`` (both square to each other): the part of the object
-    seen in part keeps its name, object, axes and what was seen of it."""
-    R = part.rotation
-    lo_, hi_ = np.zeros(3), np.zeros(3)
-    for i in range(3):
-        (a0, a1), (b0, b1) = extent_along(part, R[:, i]), extent_along(box, R[:, i])
-        lo_[i], hi_[i] = min(a0, b0), max(a1, b1)
-    extra = {k: v for k, v in part.extra.items() if k != "hallucinated"}
-    return Cuboid(part.id, R @ (0.5 * (lo_ + hi_)), R, hi_ - lo_, part.density, part.object,
-                  part.observed, extra)
 
 
 def groups_of(arr, ground: float, p: Params) -> dict[tuple[int, int, int], list]:
@@ -331,10 +323,8 @@ def apply(arr, evidence, p: Params, ctx):
         lowered: tuple = ()
         if part is not None:
             carrier = f"{box.id}, a part of {obj} seen in part, grows under them from side to side"
-            ptop = z_range(part)[1]
-            if ptop < top - p.side_tol:
-                # its top was seen: the part ends there, and the loads reach down to it
-                box = pushed(box, *_vertical_face(box, True), ptop - top)
+            ptop = z_range(box)[1]
+            if ptop < top - p.side_tol:  # it ends at its seen top: the loads reach down to it
                 lowered = tuple(pushed(arr.cuboids[k], *_vertical_face(arr.cuboids[k], False),
                                        b - ptop) for k, b in ms)
                 carrier += f" up to its top, {ptop - ground:.2f} m, and they reach down to it"

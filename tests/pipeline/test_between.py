@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pipeline.boxops import z_range
 from pipeline.camera import Intrinsics, look_at
 from pipeline.contacts import find_contacts
 from pipeline.evidence import DepthView, Evidence
@@ -198,6 +199,19 @@ def test_a_part_of_the_sofa_seen_in_part_between_its_arms_is_the_one_under_the_c
     out, ids = changed("between", Arrangement(arr.cuboids + (strip,), arr.supports),
                        params={"between": {"seen_part": False}})
     assert ids == []
+
+
+def test_a_seat_seen_whole_under_the_cushions_but_short_of_them_carries_them_from_below():
+    # the seat's top seen 7 cm under the cushions, from arm to arm and front to back: it
+    # stays as seen, and the cushions (seen by their tops) reach down to it
+    arr = _sofa()
+    seat = _xyz("seat", -0.65, 0.65, -0.3, 0.3, 0.0, SEAT - 0.07, "sofa")
+    out, ids = changed("between", Arrangement(arr.cuboids + (seat,), arr.supports))
+    assert ids == ["seat", "c0", "c1", "c2"]
+    assert_box(out.cuboid("seat"), seat.size, seat.center)  # the edit leaves it as seen
+    for k in ("c0", "c1", "c2"):
+        assert z_range(out.cuboid(k)) == pytest.approx((SEAT - 0.07, SEAT + 0.02))
+    _assert_carries(out, "seat")
 
 
 def test_two_parts_seen_under_the_cushions_are_not_merged_into_one():
