@@ -11,9 +11,7 @@ linked by pairs overlapping along the support's long axis by ``overlap`` of the 
 while apart across it.  The row (of one box or more) is ordered as the image shows it
 (noise moves a box along its ray, which the image does not see; by the fitted centres
 when the view looks along the row within ``along_deg``), each overlap is split at its
-middle (no box left narrower than ``min_width``: where a split would, a fitted extent
-contradicts the order the image gives, and the member overlapping the others most along
-the row, a box fitted to several spines, is left out of it), and each box's face away from the
+middle (no box left narrower than ``min_width``), and each box's face away from the
 camera goes back to the row's farthest or the board's back edge (``to_board``; a book
 is seen by its spine, and the board under it says how deep the shelf is), no box deeper
 than it is tall, as far as no view saw the added space empty and it enters no box
@@ -171,36 +169,6 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
 _UP = np.array([0.0, 0.0, 1.0])
 
 
-def split_row(row: list[int], xr: dict, min_width: float
-              ) -> tuple[list[int], list[float], list[float]]:
-    """``(members, lo, hi)``: the extents along the row of the members of ``row`` (in
-    row order; ``xr``: index -> fitted extent) set side by side, each overlap of
-    neighbours split at its middle.  Where a split would leave a member narrower than
-    ``min_width``, a fitted extent contradicts the order the image gives: the member
-    overlapping the others most along the row (a box fitted to several spines' points,
-    reaching over neighbours on both sides of where the image puts it) is left out, and
-    the rest are split again; ``([], [], [])`` when no member is left."""
-    row = list(row)
-    while row:
-        lo = [xr[k][0] for k in row]
-        hi = [xr[k][1] for k in row]
-        for n in range(len(row) - 1):
-            if hi[n] > lo[n + 1]:
-                mid = 0.5 * (hi[n] + lo[n + 1])
-                hi[n], lo[n + 1] = mid, mid
-        if all(h - l >= min_width for l, h in zip(lo, hi, strict=True)):
-            return row, lo, hi
-        if len(row) == 1:
-            break
-
-        def overlap(k: int) -> float:
-            return sum(max(0.0, min(xr[k][1], xr[j][1]) - max(xr[k][0], xr[j][0]))
-                       for j in row if j != k)
-
-        row.remove(max(row, key=lambda k: (overlap(k), -row.index(k))))
-    return [], [], []
-
-
 def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
@@ -264,8 +232,13 @@ def apply(arr, evidence, p: Params, ctx):
             rows.setdefault(int(group[n]), []).append(k)
         for row in rows.values():
             row.sort(key=lambda k: row_order(cubs[k], s, X, views, p.along_deg))
-            row, lo, hi = split_row(row, xr, p.min_width)
-            if not row:
+            lo = [xr[k][0] for k in row]
+            hi = [xr[k][1] for k in row]
+            for n in range(len(row) - 1):
+                if hi[n] > lo[n + 1]:
+                    mid = 0.5 * (hi[n] + lo[n + 1])
+                    hi[n], lo[n + 1] = mid, mid
+            if any(h - l < p.min_width for l, h in zip(lo, hi)):
                 continue
             # the face away from the camera goes back to the row's farthest one, or to
             # the board's back edge, no member deeper than it is tall

@@ -251,36 +251,3 @@ def test_a_neighbour_covering_half_the_book_is_behind_it_and_stops_the_push():
     out, _ = resolve_rows(_beside_scene(0.021))
     np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.06), atol=1e-12)
     np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, -0.14), atol=1e-12)
-
-
-def test_a_box_fitted_over_several_spines_is_left_out_and_the_rest_go_back():
-    """Three spines side by side, and in front of them a box fitted to points of all
-    three (8.3 cm along the row, its centre between the first two spines'): split at
-    the middles, the second spine would keep 2.5 mm, under ``min_width`` (5 mm).  Its
-    extent contradicts the order, so the box overlapping the others most is left out,
-    as it was fitted, and the three spines go back side by side, each as deep as it is
-    tall or to the board's back edge.  (Before, the whole row stayed as fitted.)"""
-    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
-    a = _book("a", -0.30, -0.27, -0.14, -0.10)
-    b = _book("b", -0.27, -0.24, -0.09, -0.05)
-    c = _book("c", -0.24, -0.21, -0.14, -0.10)
-    wide = _book("d", -0.295, -0.212, -0.20, -0.145)
-    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)),
-                       a, b, c, wide), (ground(),))
-    out, ids = resolve_rows(arr)
-    assert ids == ["a", "b", "c"]
-    assert out.cuboid("d") is arr.cuboid("d")
-    for k, x, y in (("a", (-0.30, -0.27), (-0.14, -0.14 + H)),
-                    ("b", (-0.27, -0.24), (-0.09, 0.15)),
-                    ("c", (-0.24, -0.21), (-0.14, -0.14 + H))):
-        np.testing.assert_allclose(_x(out.cuboid(k)), x, atol=1e-12)
-        np.testing.assert_allclose(_y(out.cuboid(k)), y, atol=1e-12)
-    cs = find_contacts(out)
-    assert not cs.penetrations
-    touching = cs.lookup()
-    assert ("a", "b") in touching and ("b", "c") in touching
-    # one spine fewer in the row: the same split leaves every member wider than 5 mm
-    # when the wide box reaches 1.5 cm less far back along the row
-    narrower = arr.with_(cuboids=arr.cuboids[:4] + (_book("d", -0.295, -0.227, -0.20, -0.145),))
-    _, ids = resolve_rows(narrower)
-    assert "d" in ids
