@@ -21,6 +21,17 @@ plane wins.  Otherwise the prior is kept as it is, even
 against a large plane elsewhere (a table top, or a floor the user placed wrongly: the
 given floor wins and the report says by how much RANSAC's plane disagreed).  A floor out
 of the picture is then no error.
+
+Rooms are square
+----------------
+Walls are plumb and meet at right angles.  A far wall is a slab of points several
+centimetres thick (Kinect's axial noise is 5 cm at 5.5 m), and a RANSAC plane through
+it errs by degrees, in yaw and in tilt; every box fixed to that wall, or turned onto its
+yaw, inherits the error.  So a wall found after the first (the largest) whose normal
+lies within :data:`WALL_SQUARE_DEG` of a right angle or of parallel to the first wall's,
+in plan, takes that angle exactly, plumb, through the median of its own inliers along
+its new normal.  A wall further off stays as fitted (a bay window's wall, a corridor's
+bend): the prior rounds the fit's error, not the room.
 """
 
 from __future__ import annotations
@@ -69,6 +80,9 @@ WALL_MAX_OBJECT_SHARE = 0.5
 #: wall a slab thicker than the RANSAC threshold, and RANSAC returns it as two planes.
 WALL_TWIN_DEG = 5.0
 WALL_TWIN_DIST = 0.10
+#: A wall whose normal is within this many degrees (in plan) of a right angle or of
+#: parallel to the first wall's is square to it: plumb, at that angle exactly.
+WALL_SQUARE_DEG = 10.0
 #: With a floor prior (a camera pose, or ``--up`` with ``--floor-height``), a RANSAC
 #: plane refines the floor only when its normal is within this many degrees of the
 #: prior's and the floor height it gives (below the input origin) within this many metres.
@@ -414,6 +428,14 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         ref = cam_w if camera_frame or T_world_input is not None else world.mean(0)
         if (ref - pt_w) @ n_w < 0:
             n_w = -n_w
+        if walls:
+            square = square_to(n_w, walls[0].normal, ground.normal, WALL_SQUARE_DEG)
+            if square is not None:
+                inliers = world[np.abs(points @ p.normal + p.offset) < 1.5 * thr]
+                if len(inliers):
+                    n_w = square
+                    at = np.median(inliers, axis=0)
+                    pt_w = at - (float(at @ n_w) - float(np.median(inliers @ n_w))) * n_w
         twin = next((k for k, w in enumerate(walls)
                      if n_w @ w.normal > np.cos(np.radians(WALL_TWIN_DEG))
                      and abs(float(w.signed_distance(pt_w[None])[0])) < WALL_TWIN_DIST), None)
@@ -435,6 +457,31 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         labels[on] = len(walls) + 1
         walls.append(wall)
     return SceneFrame(T, ground, tuple(walls), labels, planes, thr, source, notes)
+
+
+def square_to(normal: np.ndarray, first: np.ndarray, up: np.ndarray,
+              max_deg: float = WALL_SQUARE_DEG) -> np.ndarray | None:
+    """The plumb unit normal at an exact multiple of 90 degrees (in plan) from the wall
+    normal ``first`` that is nearest to ``normal``, when within ``max_deg`` of it in
+    plan and not ``normal`` itself; else None (``up``: the ground's normal)."""
+    up = np.asarray(up, float) / np.linalg.norm(up)
+
+    def flat(v: np.ndarray) -> np.ndarray | None:
+        v = np.asarray(v, float) - (np.asarray(v, float) @ up) * up
+        n = float(np.linalg.norm(v))
+        return v / n if n > 1e-9 else None
+
+    a, f = flat(normal), flat(first)
+    if a is None or f is None:
+        return None
+    g = np.cross(up, f)  # in plan, a right angle from the first wall's normal
+    options = (f, -f, g, -g)
+    best = max(options, key=lambda o: float(o @ a))
+    if float(best @ a) < np.cos(np.radians(max_deg)):
+        return None
+    if float(best @ np.asarray(normal, float)) >= 1.0 - 1e-12:
+        return None
+    return best
 
 
 def lower_floor(points: np.ndarray, g: Plane, thr: float, rng: np.random.Generator

@@ -215,3 +215,76 @@ def test_a_table_top_with_the_room_below_it_is_not_taken_for_the_floor():
 
     g = Plane(np.array([0.0, 0.0, 1.0]), 0.0, 1)
     assert lower_floor(np.vstack([floor, _level(rng, 10, -0.2, 0.3)]), g, 0.01, rng) is None
+
+
+def _room(second_deg: float, at_y: float = 2.0, seed: int = 0) -> np.ndarray:
+    """A floor (4 x 4 m), a large wall at x = -2 and a smaller one through (0, ``at_y``)
+    turned ``second_deg`` degrees from square to it, points with 5 mm of noise along
+    each plane's normal (z up)."""
+    rng = np.random.default_rng(seed)
+    floor = _level(rng, 10000, 0.0, 2.0)
+    yz = rng.uniform([-2.0, 0.0], [2.0, 2.5], (8000, 2))
+    first = np.column_stack([-2.0 + rng.normal(0, 0.005, len(yz)), yz])
+    a = np.radians(second_deg)
+    t = rng.uniform(-1.5, 1.5, 5000)
+    z = rng.uniform(0.0, 2.5, 5000)
+    along, normal = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+    xy = np.array([0.0, at_y]) + t[:, None] * along + rng.normal(0, 0.005, 5000)[:, None] * normal
+    second = np.column_stack([xy, z])
+    return np.concatenate([floor, first, second])
+
+
+def _plan_cos(a: np.ndarray, b: np.ndarray) -> float:
+    a, b = np.array([a[0], a[1]]), np.array([b[0], b[1]])
+    return float(abs(a @ b) / (np.linalg.norm(a) * np.linalg.norm(b)))
+
+
+def test_a_wall_fitted_a_few_degrees_off_square_to_the_first_is_square_and_plumb(
+        monkeypatch):
+    """Rooms are square: the second wall, built 6 degrees off square (a far wall's fit
+    errs so), is found at exactly a right angle to the first, plumb, through the middle
+    of its own points; 30 degrees off, it is a room's bend, not the fit's error, and
+    stays as fitted."""
+    pts = _room(6.0)
+    f = find_frame(pts, np.random.default_rng(0), up=np.array([0.0, 0.0, 1.0]))
+    assert len(f.walls) == 2
+    first, second = f.walls
+    assert _plan_cos(first.normal, second.normal) < 1e-9  # exactly a right angle
+    assert abs(second.normal[2]) < 1e-12  # plumb
+    mid = transform(f.T_world_input, np.array([[0.0, 2.0, 1.0]]))
+    assert abs(second.signed_distance(mid)[0]) < 0.01
+    # without the rule RANSAC's plane keeps the 6 degrees
+    import pipeline.planes as planes
+
+    with monkeypatch.context() as m:
+        m.setattr(planes, "WALL_SQUARE_DEG", 0.0)
+        raw = find_frame(pts, np.random.default_rng(0), up=np.array([0.0, 0.0, 1.0]))
+    assert _plan_cos(raw.walls[0].normal, raw.walls[1].normal) == pytest.approx(
+        np.sin(np.radians(6.0)), abs=0.005)
+    # (further back, so that no floor lies behind the slanted wall)
+    bend = find_frame(_room(30.0, at_y=3.2), np.random.default_rng(0),
+                      up=np.array([0.0, 0.0, 1.0]))
+    assert len(bend.walls) == 2
+    assert _plan_cos(bend.walls[0].normal, bend.walls[1].normal) == pytest.approx(
+        np.sin(np.radians(30.0)), abs=0.01)
+
+
+def test_square_to_rounds_only_within_its_angle():
+    """Just inside and outside ``WALL_SQUARE_DEG`` (10), of a right angle and of
+    parallel; a normal already square is left as it is."""
+    from pipeline.planes import WALL_SQUARE_DEG, square_to
+
+    up = np.array([0.0, 0.0, 1.0])
+    first = np.array([1.0, 0.0, 0.0])
+
+    def at(deg, tilt=0.0):
+        a, t = np.radians(deg), np.radians(tilt)
+        return np.array([np.cos(a) * np.cos(t), np.sin(a) * np.cos(t), np.sin(t)])
+
+    assert WALL_SQUARE_DEG == 10.0
+    np.testing.assert_allclose(square_to(at(90 - 9.9, tilt=3.0), first, up), [0, 1, 0],
+                               atol=1e-12)
+    assert square_to(at(90 - 10.1), first, up) is None
+    np.testing.assert_allclose(square_to(at(180 + 9.9), first, up), [-1, 0, 0], atol=1e-12)
+    assert square_to(at(10.1), first, up) is None
+    assert square_to(at(90.0), first, up) is None  # already square: nothing to round
