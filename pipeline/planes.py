@@ -30,8 +30,11 @@ it errs by degrees, in yaw and in tilt; every box fixed to that wall, or turned 
 yaw, inherits the error.  So a wall found after the first (the largest) whose normal
 lies within :data:`WALL_SQUARE_DEG` of a right angle or of parallel to the first wall's,
 in plan, takes that angle exactly, plumb, through the median of its own inliers along
-its new normal.  A wall further off stays as fitted (a bay window's wall, a corridor's
-bend): the prior rounds the fit's error, not the room.
+its new normal; squared parallel to a wall already found and within
+:data:`WALL_TWIN_DIST` of it, it is that wall's far layer, as any such plane is.  The
+first wall, the reference, stays as fitted (making walls plumb alone did not pay on a
+held-out pool, docs/results.md).  A wall further off stays as fitted (a bay window's
+wall, a corridor's bend): the prior rounds the fit's error, not the room.
 """
 
 from __future__ import annotations
