@@ -434,7 +434,7 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
         if walls:
             square = square_to(n_w, walls[0].normal, ground.normal, WALL_SQUARE_DEG)
             if square is not None:
-                inliers = world[np.abs(points @ p.normal + p.offset) < 1.5 * thr]
+                inliers = world[np.abs(p.distance(points)) < 1.5 * thr]
                 if len(inliers):
                     n_w = square
                     at = np.median(inliers, axis=0)

@@ -40,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boxops import (
+    UP,
     as_seen,
     changed_boxes,
     extended,
@@ -61,9 +62,6 @@ from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separ
 from ..evidence import FREE_FRACTION_MAX, slab_samples
 from ..model import Arrangement, Cuboid, box_corners
 from .base import Edit, Prior, principle_of
-
-#: The vertical.
-_UP = np.array([0.0, 0.0, 1.0])
 
 
 @dataclass(frozen=True)
@@ -198,7 +196,7 @@ def held_between(c: Cuboid, mates, tol: float) -> bool:
         across = [c.rotation[:, b] for b in hz if b != a]
         plus = minus = False
         for q in mates:
-            if (overlap_along(c, q, _UP) < -tol
+            if (overlap_along(c, q, UP) < -tol
                     or any(overlap_along(c, q, v) < -tol for v in across)):
                 continue  # not level with it, or not beside it
             qlo, qhi = extent_along(q, u)
@@ -232,7 +230,7 @@ def floor_reaches(arr: Arrangement, gap: float, near_floor: float, flat: bool = 
                     or (is_flat and (not flat or held_between(c, mates, hold_gap)))):
                 continue
             bottom = z_range(c)[0]
-            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, as_seen(q), _UP)
+            if any(z_range(q)[1] <= bottom + gap and overlap_across(c, as_seen(q), UP)
                    for q in mates):
                 continue  # it stands on a part of its object (a chair's back on its seat)
             drop = bottom - floor

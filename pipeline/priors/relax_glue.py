@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import extent_along, face_normal, floor_height, horizontal_axes, touching_group
+from ..boxops import UP, extent_along, face_normal, floor_height, horizontal_axes, touching_group
 from ..contacts import find_contacts
 from ..errors import InputError
 from ..evidence import slab_samples
@@ -40,14 +40,11 @@ class Params:
     growth_fractions: tuple = (0.25, 0.5, 1.0)  #: face growths, in extents of the box
 
 
-_UP = np.array([0.0, 0.0, 1.0])
-
-
 def _down_to_what_is_under(arr: Arrangement, c, axis: int, u: np.ndarray) -> set[float]:
     """Lengths by which box ``c``'s lower end (its face ``u`` along ``axis``, the one
     nearest down) grows until its lowest point reaches the floor or the top of a box of
     ``arr`` under the middle of that end, as it would stand there."""
-    low = extent_along(c, _UP)[0]
+    low = extent_along(c, UP)[0]
     slope = -float(u[2])  # metres down per metre along u
     out = set()
     floor = floor_height(arr)
@@ -56,7 +53,7 @@ def _down_to_what_is_under(arr: Arrangement, c, axis: int, u: np.ndarray) -> set
     for o in arr.cuboids:
         if o.id == c.id:
             continue
-        top = extent_along(o, _UP)[1]
+        top = extent_along(o, UP)[1]
         if top >= low - 1e-4:
             continue
         length = (low - top) / slope

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boxops import (
+    UP,
     box_samples,
     entered,
     extent_along,
@@ -166,9 +167,6 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
     return float((uv[0] - uv[1]) @ along / max(float(np.linalg.norm(along)), 1e-9))
 
 
-_UP = np.array([0.0, 0.0, 1.0])
-
-
 def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
@@ -198,7 +196,7 @@ def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
         for k in members:
             c = _turned(arr.cuboids[k], s)
             x0, x1 = _range(c, s.center, X)
-            z0, z1 = _range(c, s.center, _UP)
+            z0, z1 = _range(c, s.center, UP)
             if z1 - z0 >= p.min_height_rel * (x1 - x0):
                 cubs[k] = c
         if len(cubs) >= min_members:
@@ -216,7 +214,7 @@ def apply(arr, evidence, p: Params, ctx):
         members = sorted(cubs)
         xr = {k: _range(c, s.center, X) for k, c in cubs.items()}
         yr = {k: _range(c, s.center, Y) for k, c in cubs.items()}
-        zr = {k: _range(c, s.center, _UP) for k, c in cubs.items()}
+        zr = {k: _range(c, s.center, UP) for k, c in cubs.items()}
         links = np.zeros((len(members), len(members)), dtype=bool)
         for n, i in enumerate(members):
             for m in range(n + 1, len(members)):
