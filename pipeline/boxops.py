@@ -32,7 +32,8 @@ from .model import Arrangement, Cuboid, ObservedBox, rotation_about_axis
 #: this one admits the rounding of a few turns and nothing a person would call tilted.
 UPRIGHT_TOL_DEG = 2.5
 _UPRIGHT_COS = float(np.cos(np.radians(UPRIGHT_TOL_DEG)))
-#: An axis within 60 degrees of the horizontal counts as horizontal (cos 60 = 0.5).
+#: An axis at least 60 degrees from the vertical (within 30 degrees of the horizontal:
+#: its vertical component at most cos 60 = 0.5) counts as horizontal.
 HORIZONTAL_COS = 0.5
 #: A box under another is a slab it rests on (:func:`resting_cut`) when its footprint is
 #: this many times the upper box's and it is at most half as tall.
@@ -65,7 +66,7 @@ def up_axis(c: Cuboid) -> int:
 
 
 def horizontal_axes(c: Cuboid) -> list[int]:
-    """The local axes within 60 degrees of the horizontal."""
+    """The local axes at least 60 degrees from the vertical (:data:`HORIZONTAL_COS`)."""
     return [a for a in range(3) if abs(c.rotation[2, a]) <= HORIZONTAL_COS]
 
 

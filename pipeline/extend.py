@@ -44,7 +44,7 @@ from .model import Arrangement, Cuboid, box_corners, is_support_id
 
 #: An extension longer than this many times the scene's median box edge is not proposed.
 MAX_EXTENSION_REL = 12.0
-#: A sideways extension (face normal within 60 degrees of horizontal) is at most this
+#: A sideways extension (face normal within 30 degrees of horizontal) is at most this
 #: many times the box's largest edge: hidden backs, not bridges between far objects.
 SIDEWAYS_EXTENSION_REL = 1.5
 #: A face looks at a support when its outward normal is within 60 degrees of facing it.
