@@ -348,7 +348,7 @@ class Structure:
         dirs = []
         for k in np.argsort(-vol)[:EDGE_CUBOIDS]:
             R = self.rotations[k]
-            horiz = np.abs(R[2]) < 0.5  # local axes within 60 deg of horizontal
+            horiz = np.abs(R[2]) < 0.5  # local axes within 30 deg of horizontal
             for j in np.flatnonzero(horiz):
                 a = R[:2, j]
                 if np.linalg.norm(a) > 1e-6:
