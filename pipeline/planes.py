@@ -391,11 +391,10 @@ def find_frame(points: np.ndarray, rng: np.random.Generator, *, up: np.ndarray |
                 h = float(np.median(transform(T, points[on])[:, 2]))
                 ground = Support("ground", np.array([0.0, 0.0, h]), np.array([0.0, 0.0, 1.0]))
     else:
-        ex = np.array([1.0, 0.0, 0.0]) if camera_frame else _any_perp(n_up)
-        ex = ex - (ex @ n_up) * n_up
-        if np.linalg.norm(ex) < 1e-6:
+        ex = _across(np.array([1.0, 0.0, 0.0]) if camera_frame else _any_perp(n_up), n_up,
+                     1e-6)
+        if ex is None:
             ex = _any_perp(n_up)
-        ex /= np.linalg.norm(ex)
         ey = np.cross(n_up, ex)
         R_in_w = np.stack([ex, ey, n_up], axis=1)  # columns: world axes in input coords
         origin = -g.offset * n_up  # foot of the input origin on the plane
@@ -468,13 +467,7 @@ def square_to(normal: np.ndarray, first: np.ndarray, up: np.ndarray,
     normal ``first`` that is nearest to ``normal``, when within ``max_deg`` of it in
     plan and not ``normal`` itself; else None (``up``: the ground's normal)."""
     up = np.asarray(up, float) / np.linalg.norm(up)
-
-    def flat(v: np.ndarray) -> np.ndarray | None:
-        v = np.asarray(v, float) - (np.asarray(v, float) @ up) * up
-        n = float(np.linalg.norm(v))
-        return v / n if n > 1e-9 else None
-
-    a, f = flat(normal), flat(first)
+    a, f = _across(normal, up), _across(first, up)
     if a is None or f is None:
         return None
     g = np.cross(up, f)  # in plan, a right angle from the first wall's normal
@@ -527,7 +520,15 @@ def lower_floor(points: np.ndarray, g: Plane, thr: float, rng: np.random.Generat
     return None
 
 
+def _across(v: np.ndarray, n: np.ndarray, tol: float = 1e-9) -> np.ndarray | None:
+    """The unit direction of ``v``'s part across the unit normal ``n`` (in plan, for
+    ``n`` up); None when that part is no longer than ``tol``."""
+    v = np.asarray(v, float)
+    v = v - (v @ n) * n
+    length = float(np.linalg.norm(v))
+    return v / length if length > tol else None
+
+
 def _any_perp(n: np.ndarray) -> np.ndarray:
     a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    v = a - (a @ n) * n
-    return v / np.linalg.norm(v)
+    return _across(a, n)
