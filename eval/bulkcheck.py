@@ -75,9 +75,11 @@ class CheckOptions:
     budget: float = 300.0
 
 
-def file_mu(arr, flag_mu: float | None) -> float:  # noqa: ANN001 - an Arrangement
+def file_mu(arr, flag_mu: float | None,  # noqa: ANN001 - an Arrangement
+            where: str | os.PathLike | None = None) -> float:
     """The friction coefficient to use: ``--mu`` when given, else the file's ``meta.mu``
-    (what ``unseen run --mu`` recorded), else the default 0.7."""
+    (what ``unseen run --mu`` recorded), else the default 0.7.  ``where``: the file, named
+    in the error."""
     import math
 
     from pipeline.constants import DEFAULT_MU, MU_RANGE
@@ -88,14 +90,17 @@ def file_mu(arr, flag_mu: float | None) -> float:  # noqa: ANN001 - an Arrangeme
     mu = arr.meta.get("mu", DEFAULT_MU)
     if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not math.isfinite(mu) \
             or not MU_RANGE[0] <= mu <= MU_RANGE[1]:
-        raise InputError(f"meta.mu: must be a friction coefficient in [{MU_RANGE[0]:g}, "
+        raise InputError(f"{f'{where}: ' if where is not None else ''}meta.mu: must be a "
+                         f"friction coefficient in [{MU_RANGE[0]:g}, "
                          f"{MU_RANGE[1]:g}], got {mu!r}; fix the file or pass --mu")
     return float(mu)
 
 
 def check_arrangement(arr, opts: CheckOptions,  # noqa: ANN001 - an Arrangement
-                      progress: Callable[[str], None] | None = None) -> dict:
-    """Run every check of ``opts`` on ``arr``.
+                      progress: Callable[[str], None] | None = None,
+                      where: str | os.PathLike | None = None) -> dict:
+    """Run every check of ``opts`` on ``arr`` (read from the file ``where``, named in
+    errors).
 
     Returns
     -------
@@ -108,7 +113,7 @@ def check_arrangement(arr, opts: CheckOptions,  # noqa: ANN001 - an Arrangement
     InputError
         A bad ``meta.mu``, or a scene an engine cannot simulate within ``opts.budget``.
     """
-    mu = file_mu(arr, opts.mu)
+    mu = file_mu(arr, opts.mu, where)
     results: dict[str, dict] = {}
     for engine in opts.engines:
         if engine == "analytic":
@@ -150,7 +155,7 @@ def check_file(path: str, opts: CheckOptions) -> dict:
         from pipeline.arrangement_io import read_arrangement
 
         arr = read_arrangement(path)
-        res = check_arrangement(arr, opts)
+        res = check_arrangement(arr, opts, where=path)
     except InputError as exc:
         return {"arrangement": path, "error": _error_line(exc, path)}
     except OSError as exc:

@@ -57,7 +57,8 @@ class OneLineParser(argparse.ArgumentParser):
 
 
 def _top_parser() -> argparse.ArgumentParser:
-    lines = [f"  {name:<8}{help_}" for name, (_, help_, _) in COMMANDS.items()]
+    width = max(map(len, COMMANDS)) + 2
+    lines = [f"  {name:<{width}}{help_}" for name, (_, help_, _) in COMMANDS.items()]
     examples = [f"  {ex}" for (_, _, ex) in COMMANDS.values()]
     return argparse.ArgumentParser(
         prog="unseen",
@@ -75,8 +76,15 @@ def main(argv: list[str] | None = None) -> int:
     top.add_argument("command", choices=sorted(COMMANDS), metavar="COMMAND",
                      help="one of: " + ", ".join(COMMANDS))
     top.add_argument("--version", action="version", version=_version())
-    if not argv or argv[0] not in COMMANDS:
-        top.parse_args(argv[:1] or ["--help"])
+    if not argv:  # nothing asked: the overview, and the exit code of a usage error
+        top.print_help()
+        return 2
+    if argv[0] in ("-h", "--help", "--version"):
+        top.parse_args(argv[:1])
+        return 0
+    if argv[0] not in COMMANDS:
+        print(f"unseen: error: unknown command {argv[0]!r}; one of {', '.join(COMMANDS)} "
+              "(see unseen --help)", file=sys.stderr)
         return 2
     name = argv[0]
     # headless rendering: MuJoCo picks its GL backend when first imported

@@ -25,6 +25,34 @@ def _finite(value, flag: str, lo: float, hi: float, what: str, lo_open: bool = F
         raise InputError(f"{flag}: {what}, got {value}")
 
 
+#: The largest seed accepted (numpy takes any integer; a seed is recorded in JSON files,
+#: whose integers other tools read as 64-bit).
+SEED_MAX = 2**63 - 1
+
+
+def check_seed(seed: int, flag: str = "--seed") -> None:
+    """InputError unless ``seed`` is an integer in [0, :data:`SEED_MAX`]."""
+    if not 0 <= seed <= SEED_MAX:
+        raise InputError(f"{flag}: must be an integer from 0 to {SEED_MAX}, got {seed}")
+
+
+def _check_intrinsics(text: str | None) -> None:
+    """``--intrinsics`` given as numbers: four finite ones, focal lengths positive (a
+    .json file is read, and checked, with the scan)."""
+    import math
+    import re
+
+    if text is None or text.strip().endswith(".json"):
+        return
+    try:
+        vals = [float(x) for x in re.split(r"[,\s]+", text.strip())]
+    except ValueError:
+        vals = []
+    if len(vals) != 4 or not all(math.isfinite(v) for v in vals) or min(vals[:2]) <= 0:
+        raise InputError(f"--intrinsics {text!r}: expected fx,fy,cx,cy (4 finite numbers, "
+                         "fx and fy > 0) or a .json file")
+
+
 def validate_args(args: argparse.Namespace) -> None:
     """Every option of ``unseen run`` checked before any work (one line, exit 2)."""
     from pipeline.constants import MU_RANGE
@@ -32,8 +60,8 @@ def validate_args(args: argparse.Namespace) -> None:
 
     if not str(args.input).strip():
         raise InputError("INPUT: empty path; give a scene folder, an RGB-D folder or a cloud")
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    check_seed(args.seed)
+    _check_intrinsics(getattr(args, "intrinsics", None))
     _finite(getattr(args, "budget", None), "--budget", *BUDGET_RANGE,
             "must be a positive number of seconds up to a day", lo_open=True)
     _finite(getattr(args, "mu", None), "--mu", *MU_RANGE,

@@ -183,10 +183,15 @@ def initial_cuboids(scan: ScanInput, *, rng: np.random.Generator, cell_rel: floa
     if len(pts) == 0 or not np.all(np.isfinite(pts)):
         raise InputError(f"{scan.source}: empty or non-finite point cloud")
     seg_ids = scan.instance if segmentation != "cluster" else None
-    frame = find_frame(pts, rng, up=scan.up, T_world_input=scan.T_world_cam,
-                       camera_frame=camera, floor_height=scan.floor_height,
-                       object_points=None if seg_ids is None or not np.any(seg_ids > 0)
-                       else np.asarray(seg_ids) > 0)
+    try:
+        frame = find_frame(pts, rng, up=scan.up, T_world_input=scan.T_world_cam,
+                           camera_frame=camera, floor_height=scan.floor_height,
+                           object_points=None if seg_ids is None or not np.any(seg_ids > 0)
+                           else np.asarray(seg_ids) > 0)
+    except InputError as exc:  # what the scan lacks: name the scan (flags name themselves)
+        if str(exc).startswith("--") or not scan.source:
+            raise
+        raise InputError(f"{scan.source}: {exc}") from None
     notes.extend(frame.notes)
     world = transform(frame.T_world_input, pts)
     timings["planes"] = time.perf_counter() - t

@@ -48,7 +48,8 @@ def regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     try:
         st = os.stat(p)
     except FileNotFoundError:
-        raise InputError(f"{p}: no such file (expected a {what})") from None
+        article = "an" if what[:1].lower() in "aeiou" else "a"
+        raise InputError(f"{p}: no such file (expected {article} {what})") from None
     except OSError as exc:
         raise InputError(f"{p}: cannot read the {what} ({exc.strerror})") from None
     if stat.S_ISDIR(st.st_mode):

@@ -17,7 +17,7 @@ Supported inputs (see ``unseen run --help`` for the flags of each real data set)
   ``float32-dat`` (int32 rows, int32 cols, float32 metres: RAPter / Shao Kinect captures);
 * point clouds: ``.ply`` (ascii / binary, vertex properties ``x y z`` and optional colour
   and ``instance``/``label``), ``.pcd`` (ascii, binary and binary_compressed, with an
-  optional ``label`` field used as instance ids), ``.npz`` with key ``pc`` (N x 3 or 6).
+  optional ``label`` field used as instance ids), ``.npz`` with key ``pc`` (N x 3 or 6; a file of one array may name it otherwise).
 
 Organised clouds (PCD ``HEIGHT > 1``) are turned back into an RGB-D frame with the
 given (or Kinect default) intrinsics, so overlays and visibility tests work on them.
@@ -497,7 +497,15 @@ def load_cloud(path: str | os.PathLike, *, intrinsics: str | None = None,
     elif suffix == ".npz":
         try:
             z = np.load(path)
-            pc = np.asarray(z["pc"] if "pc" in z else z[z.files[0]], dtype=np.float64)
+            keys = list(z.files)
+        except (OSError, ValueError):
+            raise InputError(f"{path}: cannot read a point array from this .npz") from None
+        if "pc" not in keys and len(keys) != 1:
+            held = f"among {', '.join(map(repr, keys))}" if keys else "(it holds no arrays)"
+            raise InputError(f"{path}: no array 'pc' (N x 3 or N x 6 points) {held}; save "
+                             "the points under the key 'pc'")
+        try:
+            pc = np.asarray(z["pc" if "pc" in keys else keys[0]], dtype=np.float64)
         except (OSError, ValueError, KeyError, IndexError):
             raise InputError(f"{path}: cannot read a point array from this .npz") from None
         if pc.ndim != 2 or pc.shape[1] < 3:
@@ -659,8 +667,8 @@ def _load_scan(path: str | os.PathLike, *, color: str | None = None, depth: str 
     elif (folder / "intrinsics.json").exists():
         intr = read_intrinsics(folder / "intrinsics.json")
     else:
-        raise InputError(f"{folder}: intrinsics.json missing; give --intrinsics fx,fy,cx,cy "
-                         "(Kinect v1 default: 525,525,319.5,239.5)")
+        raise InputError(f"{depth_p}: no intrinsics (no {folder / 'intrinsics.json'}); give "
+                         "--intrinsics fx,fy,cx,cy (Kinect v1 default: 525,525,319.5,239.5)")
     pose = read_pose(folder / "camera_pose.json") if (folder / "camera_pose.json").exists() else None
     inst_p = resolve(instance, "instance.png", "--instance")
     inst_img = _imread(inst_p, "instance").astype(np.int64) if inst_p is not None else None

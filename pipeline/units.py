@@ -10,7 +10,8 @@ points) and decides once:
   0.001 for millimetres);
 - extent within :data:`PLAUSIBLE_EXTENT` (an indoor scan, 0.2 m to 50 m): kept as is;
 - otherwise, a bare point cloud (no camera, no depth image) is rescaled by the power of
-  ten that brings its extent into [1, 10) m, and the report says so; a scan with a depth
+  ten that brings its extent into [1, 10) m (a factor within :data:`SCALE_RANGE`, as
+  ``--scale`` must be; beyond it the cloud is refused), and the report says so; a scan with a depth
   image is refused, naming ``--depth-scale`` and ``--scale``, because its depth encoding
   is the likelier mistake.
 
@@ -90,6 +91,11 @@ def to_metres(scan: ScanInput, scale: float | None = None) -> tuple[ScanInput, f
                          f"({PLAUSIBLE_EXTENT[0]:g}-{PLAUSIBLE_EXTENT[1]:g} m); check "
                          "--depth-scale, or give --scale (metres per unit) to accept it")
     s = float(10.0 ** -np.floor(np.log10(ext)))
+    if not SCALE_RANGE[0] <= s <= SCALE_RANGE[1]:
+        raise InputError(f"{src}: the cloud is {ext:.3g} units across; no unit from "
+                         f"{SCALE_RANGE[0]:g} to {SCALE_RANGE[1]:g} m makes it an indoor "
+                         f"scene ({PLAUSIBLE_EXTENT[0]:g}-{PLAUSIBLE_EXTENT[1]:g} m); check "
+                         "how the file was written")
     return _scaled(scan, s), s, (f"the cloud is {ext:.3g} units across, not {PLAUSIBLE_EXTENT[0]:g}-"
                                  f"{PLAUSIBLE_EXTENT[1]:g} m: scaled by {s:g} to metres "
                                  "(--scale 1 keeps it as it is)")

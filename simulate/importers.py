@@ -93,7 +93,7 @@ class SceneGeoms:
     def describe(self, k: int) -> str:
         """``geom 'b3' of body 'table'`` (or ``geom #3`` when unnamed)."""
         geom = f"geom {self.names[k]!r}" if self.names[k] else f"geom #{k}"
-        return f"{geom} of body {self.bodies[k]!r}"
+        return f"{geom} of {_body_text(self.bodies[k])}"
 
 
 # ------------------------------------------------------------------------------ entry
@@ -153,6 +153,7 @@ def _import(path: Path, fmt: str, root) -> Arrangement:
         raise InputError(f"{path}: a URDF <plane> (PyBullet's extension) is not read; stand "
                          "for the floor with a box collision named 'support:ground' whose "
                          "top face is the floor, as unseen export writes")
+    _refuse_non_finite(path, root)
     spec, model = _compile(path, fmt)
     geoms = scene_geoms(spec, model, path)
     mu = _uniform_mu(geoms.friction) if fmt == "mjcf" else _urdf_mu(root)
@@ -160,6 +161,28 @@ def _import(path: Path, fmt: str, root) -> Arrangement:
     if mu is not None:
         meta["mu"] = mu
     return arrangement_from_geoms(geoms, where=str(path), meta=meta)
+
+
+def _body_text(name: str) -> str:
+    """``body 'table'``, or ``an unnamed body``."""
+    return f"body {name!r}" if name else "an unnamed body"
+
+
+def _refuse_non_finite(path: Path, root) -> None:
+    """InputError naming the first attribute whose numbers include NaN or infinity (MuJoCo
+    would print its own warning and carry on)."""
+    for elem in root.iter():
+        for key, value in elem.attrib.items():
+            tokens = value.split()
+            try:
+                numbers = [float(t) for t in tokens]
+            except ValueError:
+                continue  # not a list of numbers
+            if numbers and not np.all(np.isfinite(numbers)):
+                name = elem.get("name")
+                where = f"<{elem.tag} name={name!r}>" if name else f"<{elem.tag}>"
+                raise InputError(f"{path}: {where} {key}={value!r} holds NaN or infinity; "
+                                 "give finite numbers")
 
 
 def _compile(path: Path, fmt: str):
@@ -194,7 +217,7 @@ def scene_geoms(spec, model, path: Path) -> SceneGeoms:
     if len(hinged):
         j = int(hinged[0])
         kind = mujoco.mjtJoint(model.jnt_type[j]).name[6:].lower()
-        raise InputError(f"{path}: body {body_name[model.jnt_bodyid[j]]!r} has a {kind} joint; "
+        raise InputError(f"{path}: {_body_text(body_name[model.jnt_bodyid[j]])} has a {kind} joint; "
                          "unseen models free bodies (freejoint, URDF floating) and static ones, "
                          "not articulated scenes")
     collides = (model.geom_contype != 0) | (model.geom_conaffinity != 0)
@@ -208,7 +231,7 @@ def scene_geoms(spec, model, path: Path) -> SceneGeoms:
         k = int(bad[0])
         what = mujoco.mjtGeom(int(types[k])).name[7:].lower()
         geom = f"geom {names[k]!r}" if names[k] else f"geom #{int(rows[k])}"
-        raise InputError(f"{path}: {geom} of body {bodies[k]!r} is a {what}; unseen handles "
+        raise InputError(f"{path}: {geom} of {_body_text(bodies[k])} is a {what}; unseen handles "
                          f"boxes only (planes for the ground and walls): replace it by a box")
     body_group = _rigid_groups(model, body_name, path)
     weld = body_group[model.geom_bodyid[rows]]

@@ -32,6 +32,10 @@ FAMILIES: dict[str, tuple[Callable[..., Arrangement], tuple[str, ...]]] = {
 }
 
 
+#: The options of :func:`make` that ``unseen synth`` offers as flags (``--n-boxes``, ...).
+SIZE_OPTIONS = ("n_boxes", "n_objects")
+
+
 def family_names() -> tuple[str, ...]:
     return tuple(FAMILIES)
 
@@ -51,8 +55,10 @@ def make(name: str, rng: np.random.Generator, **opts) -> Arrangement:
     bad = sorted(set(given) - set(accepted))
     if bad:
         names = ", ".join("--" + k.replace("_", "-") for k in bad)
+        flags = [f"--{k.replace('_', '-')}" for k in accepted if k in SIZE_OPTIONS]
         raise InputError(f"{names}: not an option of family {name!r}"
-                         + (f" (it takes: {', '.join(accepted)})" if accepted else ""))
+                         + (f" (it takes {', '.join(flags)})" if flags
+                            else " (it takes no size option)"))
     try:
         return fn(rng, **given)
     except ValueError as exc:

@@ -106,7 +106,7 @@ def _run_one(args: argparse.Namespace, opts) -> int:  # noqa: ANN001 - a CheckOp
 
     path = args.arrangement[0]
     arr = read_arrangement(path)
-    res = check_arrangement(arr, opts, progress=_progress_line)
+    res = check_arrangement(arr, opts, progress=_progress_line, where=path)
     results, agree = res["engines"], res["agree"]
     if args.json:
         print(json.dumps({"arrangement": str(path), "engines": results,

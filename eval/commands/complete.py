@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from eval.run_checks import check_seed
+
 EPILOG = """\
 PARTIAL and GOOD are anything `unseen run` reads with no flags (a scene directory, an
 RGB-D folder, a depth file of a known data set, a .ply/.pcd/.npz cloud); both are run
@@ -97,8 +99,7 @@ def _config(args: argparse.Namespace):
     if not (np.isfinite(args.budget) and 0 < args.budget <= 86400):
         raise InputError(f"--budget: must be a positive number of seconds up to a day, "
                          f"got {args.budget}")
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    check_seed(args.seed)
     return CompleteConfig(height_tol=args.height_tol, length_tol=args.length_tol,
                           icp_distance=args.icp_distance, transfer=args.transfer,
                           carve=not args.no_carve, edge_pairs=args.edge_pairs)

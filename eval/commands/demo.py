@@ -30,11 +30,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from eval.commands.synth import KINDS
+    from eval.run_checks import check_seed
     from pipeline.errors import InputError
     from pipeline.outdir import check_out, output_folder
 
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    check_seed(args.seed)
     if not (0.01 <= args.budget <= 86400):
         raise InputError(f"--budget: must be a positive number of seconds up to a day, got "
                          f"{args.budget}")

@@ -9,6 +9,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from eval.run_checks import check_seed
 from pipeline.outdir import out_arg
 
 EPILOG = """\
@@ -143,8 +144,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--workers: must be at least 1, got {args.workers}")
     if args.n is not None and args.n < 1:
         raise InputError(f"--n: must be at least 1, got {args.n}")
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
+    check_seed(args.seed)
     used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
     if used and args.suite != "regression":
         raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")

@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     check_mu(args.mu)
     check_out(args.out)
     arr = read_arrangement(args.arrangement)
-    mu = file_mu(arr, args.mu)
+    mu = file_mu(arr, args.mu, args.arrangement)
     fixed_node_pairs(arr, find_contacts(arr))  # a listed fixed contact must touch, as in check
     with output_folder(args.out, inputs=[args.arrangement]) as tmp:
         written = export_all(arr, tmp, welds=args.welds, mu=mu)

@@ -33,8 +33,21 @@ contacts and verdicts."""
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scene", type=Path, help="MJCF (<mujoco>) or URDF (<robot>) file")
     parser.add_argument("--out", type=Path, required=True,
-                        help="arrangement.json to write (atomically)")
+                        help="arrangement.json to write (atomically); an existing file is replaced only when it is an arrangement")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+
+
+def _is_arrangement(path: Path) -> bool:
+    """Whether ``path`` holds an arrangement file (its JSON's ``format``), which an import
+    may replace; any other file is a user's and is never overwritten."""
+    from pipeline.arrangement_io import FORMAT
+
+    try:
+        with open(path, "rb") as f:
+            data = json.loads(f.read(1 << 26))
+    except (OSError, ValueError):
+        return False
+    return isinstance(data, dict) and data.get("format") == FORMAT
 
 
 def run(args: argparse.Namespace) -> int:
@@ -51,6 +64,9 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--out {out}: is a folder; give a file name, e.g. {out}/arrangement.json")
     if out.exists() and args.scene.exists() and out.resolve() == args.scene.resolve():
         raise InputError(f"--out {out}: is the input file; inputs are never overwritten")
+    if out.exists() and not _is_arrangement(out):
+        raise InputError(f"--out {out}: exists and is not an arrangement file; it is left "
+                         "as it is: give a new file name or remove it first")
     arr = import_scene(args.scene)
     bodies, _ = rigid_bodies(arr)
     fixed = sum(c.type == "fixed" for c in arr.contacts)

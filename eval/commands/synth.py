@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from eval.run_checks import check_seed
 from pipeline.outdir import out_arg
 
 #: the scene families (same order as ``synth_scenes.registry.FAMILIES``; a test checks it)
@@ -103,13 +104,14 @@ def _run(args: argparse.Namespace) -> int:
         v = getattr(args, name)
         if v is not None and not 1 <= v <= top:
             raise InputError(f"--{name.replace('_', '-')}: must be from 1 to {top}, got {v}")
-    if args.seed < 0:
-        raise InputError(f"--seed: must be a non-negative integer, got {args.seed}")
-    if not 1 <= args.views <= MAX_VIEWS:
+    check_seed(args.seed)
+    if args.views < 1:
+        raise InputError(f"--views: must be from 1 to {MAX_VIEWS}, got {args.views}")
+    if args.views > MAX_VIEWS:
         raise InputError(f"--views: must be from 1 to {MAX_VIEWS}, got {args.views} (each view "
                          f"takes about {MB_PER_VIEW} MB of memory while the scan is made: "
                          f"{args.views} views would need about "
-                         f"{max(args.views, 0) * MB_PER_VIEW / 1000:.1f} GB)")
+                         f"{args.views * MB_PER_VIEW / 1000:.1f} GB)")
     check_out(args.out)
     engines = ("mujoco", "pybullet") if args.engine == "all" else (args.engine,)
     with output_folder(args.out) as tmp, Progress(None, f"synth {args.kind}") as bar:

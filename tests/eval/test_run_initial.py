@@ -118,7 +118,7 @@ def _bad_inputs(tmp: Path, frame) -> dict:
     cases["colour/depth sizes"] = ([d], "colour is 100x100 but depth is 320x240")
     d = write_frame(frame, tmp / "nointr", pose=False)
     (d / "intrinsics.json").unlink()
-    cases["intrinsics missing"] = ([d], "intrinsics.json missing; give --intrinsics")
+    cases["intrinsics missing"] = ([d], "no intrinsics (no ")
     cases["intrinsics absurd"] = ([d, "--intrinsics", "2,2,160,120"], "is absurd")
     cases["empty cloud"] = ([_ply(tmp / "empty.ply", np.zeros((0, 3)))], "no finite point")
     nan = np.full((100, 3), np.nan)

@@ -58,3 +58,16 @@ def test_coincident_points_are_refused():
     scan = ScanInput(points=np.tile([[0.5, 0.25, 1.0]], (1000, 1)), source="same.ply")
     with pytest.raises(InputError, match="all 1000 points coincide"):
         to_metres(scan)
+
+
+@pytest.mark.parametrize("s_in, s_out", [(1e-6, 1e6), (1e6, 1e-6), (1e-7, None), (1e7, None)])
+def test_the_automatic_unit_obeys_the_range_of_scale(s_in, s_out):
+    # the cloud is 5 units across times s_in: the factor that makes it 1-10 m is 1 / s_in,
+    # accepted within --scale's range (1e-6 to 1e6), refused with one line beyond it
+    scan = ScanInput(points=cloud().points * s_in, source="far.ply")
+    if s_out is not None:
+        assert to_metres(scan)[1] == pytest.approx(s_out, rel=1e-12)
+        return
+    with pytest.raises(InputError, match=r"far\.ply: the cloud is .* units across; no unit "
+                                         r"from 1e-06 to 1e\+06 m"):
+        to_metres(scan)

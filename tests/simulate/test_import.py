@@ -380,3 +380,17 @@ def test_cli_refuses_to_overwrite_its_input(exported):
     r = _cli(src, "--out", src)
     assert r.returncode == 2 and "is the input file" in r.stderr
     assert src.read_bytes() == before
+
+
+def test_cli_replaces_an_arrangement_but_never_another_file(exported, tmp_path):
+    # an earlier import (an arrangement) is replaced by the new one; a user's file of any
+    # other kind (a scan) is left byte-identical and the import refused
+    out = tmp_path / "arr.json"
+    assert _cli(exported["stack"] / "scene.xml", "--out", out).returncode == 0
+    assert _cli(exported["table"] / "scene.xml", "--out", out).returncode == 0
+    _match(SCENES["table"], read_arrangement(out))
+    scan = tmp_path / "scan.json"
+    scan.write_text('{"points": [[0, 0, 0]]}')
+    r = _cli(exported["table"] / "scene.xml", "--out", scan)
+    assert r.returncode == 2 and "exists and is not an arrangement file" in r.stderr
+    assert scan.read_text() == '{"points": [[0, 0, 0]]}'
