@@ -40,15 +40,13 @@ def _check_intrinsics(text: str | None) -> None:
     """``--intrinsics`` given as numbers: four finite ones, focal lengths positive (a
     .json file is read, and checked, with the scan)."""
     import math
-    import re
+
+    from pipeline.scan_io import intrinsic_numbers
 
     if text is None or text.strip().endswith(".json"):
         return
-    try:
-        vals = [float(x) for x in re.split(r"[,\s]+", text.strip())]
-    except ValueError:
-        vals = []
-    if len(vals) != 4 or not all(math.isfinite(v) for v in vals) or min(vals[:2]) <= 0:
+    vals = intrinsic_numbers(text)
+    if vals is None or not all(math.isfinite(v) for v in vals) or min(vals[:2]) <= 0:
         raise InputError(f"--intrinsics {text!r}: expected fx,fy,cx,cy (4 finite numbers, "
                          "fx and fy > 0) or a .json file")
 

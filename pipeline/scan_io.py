@@ -192,18 +192,24 @@ def _read_dat(path: Path) -> np.ndarray:
     return d
 
 
+def intrinsic_numbers(text: str) -> list[float] | None:
+    """The four numbers of ``"fx,fy,cx,cy"`` (commas or spaces), or None when ``text``
+    is not four numbers."""
+    try:
+        vals = [float(x) for x in re.split(r"[,\s]+", text.strip())]
+    except ValueError:
+        return None
+    return vals if len(vals) == 4 else None
+
+
 def parse_intrinsics(text: str, width: int, height: int) -> Intrinsics:
     """``"fx,fy,cx,cy"`` (or a path to an intrinsics.json) -> validated :class:`Intrinsics`."""
     p = Path(text)
     if p.suffix == ".json" or p.is_file():
         intr = read_intrinsics(p)
         return intr
-    parts = re.split(r"[,\s]+", text.strip())
-    try:
-        vals = [float(x) for x in parts]
-    except ValueError:
-        vals = []
-    if len(vals) != 4:
+    vals = intrinsic_numbers(text)
+    if vals is None:
         raise InputError(f"--intrinsics {text!r}: expected fx,fy,cx,cy (4 numbers) or a .json file")
     return Intrinsics.from_json({"width": width, "height": height, "fx": vals[0], "fy": vals[1],
                                  "cx": vals[2], "cy": vals[3]}, "--intrinsics")

@@ -168,11 +168,21 @@ def _body_text(name: str) -> str:
     return f"body {name!r}" if name else "an unnamed body"
 
 
+#: MJCF and URDF attributes that hold names, not numbers (a body may be named "inf").
+NAME_ATTRIBUTES = frozenset({
+    "name", "class", "childclass", "prefix", "file", "filename", "material", "mesh",
+    "texture", "hfield", "body", "body1", "body2", "joint", "joint1", "joint2", "geom",
+    "geom1", "geom2", "site", "site1", "site2", "tendon", "target", "objname", "link",
+    "parent", "child", "type", "objtype"})
+
+
 def _refuse_non_finite(path: Path, root) -> None:
-    """InputError naming the first attribute whose numbers include NaN or infinity (MuJoCo
+    """InputError naming the first numeric attribute holding NaN or infinity (MuJoCo
     would print its own warning and carry on)."""
     for elem in root.iter():
         for key, value in elem.attrib.items():
+            if key in NAME_ATTRIBUTES:
+                continue
             tokens = value.split()
             try:
                 numbers = [float(t) for t in tokens]

@@ -325,12 +325,25 @@ def _mjcf(body: str) -> str:
      r"a connect equality constraint; unseen models rigid welds only"),
     ('<body name="hang" pos="0 0 1"><geom name="lamp" type="box" size=".1 .1 .1"/></body>',
      r"geom 'lamp' of body 'hang' is welded to the world but touches no ground or wall"),
+    ('<body pos="0 0 1"><freejoint/><geom type="sphere" size="0.1"/></body>',
+     r"geom #1 of an unnamed body is a sphere"),
+    ('<body name="b" pos="0 0 0.1"><freejoint/><geom type="box" size=".1 .1 1e400"/></body>',
+     r"<geom> size='.1 .1 1e400' holds NaN or infinity"),
 ])
 def test_refused_scenes(tmp_path, body, match):
     p = tmp_path / "scene.xml"
     p.write_text(_mjcf(body))
     with pytest.raises(InputError, match=match):
         import_scene(p)
+
+
+def test_names_that_read_as_numbers_are_names(tmp_path):
+    # "inf" and "nan" in a name attribute are names; only numeric attributes are checked
+    p = tmp_path / "scene.xml"
+    p.write_text(_mjcf('<body name="inf" pos="0 0 0.1"><freejoint/>'
+                       '<geom name="nan" type="box" size=".1 .1 .1"/></body>'))
+    arr = import_scene(p)
+    assert [(c.id, c.object) for c in arr.cuboids] == [("nan", "inf")]
 
 
 def _cli(*args):
