@@ -470,8 +470,13 @@ def read_record(path: str | Path) -> Record:
         _check_entry(entry, f"{path}: scans[{name!r}]")
     try:
         budget, seed = float(run.get("budget", BUDGET)), int(run.get("seed", SEED))
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{path}: run.budget and run.seed must be numbers") from None
+    if not (math.isfinite(budget) and 0 < budget <= 86400):
+        raise InputError(f"{path}: run.budget: a positive number of seconds up to a day, "
+                         f"got {budget}")
+    if not 0 <= seed < 2**63:
+        raise InputError(f"{path}: run.seed: an integer from 0 to {2**63 - 1}, got {seed}")
     return Record({k: dict(v) for k, v in scans.items()}, engines, budget, seed,
                   Tolerances.from_json(data.get("tolerances", {}), f"{path}: tolerances"))
 
@@ -488,9 +493,46 @@ def _check_entry(entry: Any, where: str) -> None:
     for k, b in enumerate(entry["boxes"]):
         if not (isinstance(b, dict) and {"id", "center", "size", "rotation"} <= set(b)):
             raise InputError(f"{where}.boxes[{k}]: needs id, center, size, rotation")
+        for key, shape in (("center", (3,)), ("size", (3,)), ("rotation", (3, 3))):
+            _finite_array(b[key], shape, f"{where}.boxes[{k}].{key}",
+                          positive=key == "size")
+    for k, sup in enumerate(entry["supports"]):
+        if not (isinstance(sup, dict) and {"id", "point", "normal"} <= set(sup)):
+            raise InputError(f"{where}.supports[{k}]: needs id, point, normal")
+        for key in ("point", "normal"):
+            _finite_array(sup[key], (3,), f"{where}.supports[{k}].{key}")
     for k, c in enumerate(entry["contacts"]):
         if not (isinstance(c, list) and len(c) == 3 and all(isinstance(x, str) for x in c)):
             raise InputError(f"{where}.contacts[{k}]: expected [a, b, type]")
+    for engine, verdict in entry["verdicts"].items():
+        if engine not in ("analytic", *ENGINES) or not isinstance(verdict, bool):
+            raise InputError(f"{where}.verdicts: {engine!r}: expected one of analytic, "
+                             f"{', '.join(ENGINES)} with true or false")
+    truth = entry.get("truth")
+    if truth is not None:
+        if not isinstance(truth, dict):
+            raise InputError(f"{where}.truth: expected an object")
+        for key, value in truth.items():
+            if value is not None and (isinstance(value, bool)
+                                      or not isinstance(value, (int, float))
+                                      or not math.isfinite(value)):
+                raise InputError(f"{where}.truth.{key}: expected a finite number, got {value!r}")
+
+
+def _finite_array(value: Any, shape: tuple[int, ...], where: str, positive: bool = False
+                  ) -> None:
+    """InputError unless ``value`` is a list of finite numbers of ``shape`` (each > 0
+    when ``positive``)."""
+    import numpy as np
+
+    try:
+        a = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if (a is None or a.shape != shape or not np.all(np.isfinite(a))
+            or (positive and np.any(a <= 0))):
+        what = "positive " if positive else ""
+        raise InputError(f"{where}: expected {' x '.join(map(str, shape))} finite {what}numbers")
 
 
 # ============================================================================ comparing

@@ -12,6 +12,26 @@ from collections.abc import Iterator
 from pathlib import Path
 
 
+def _refuse_special(path: Path) -> None:
+    """InputError when ``path`` exists and is not a regular file: renaming onto it would
+    replace a device (``/dev/null``), a named pipe or a socket with a regular file."""
+    import stat
+
+    from .errors import InputError
+
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return  # nothing there yet (or unreadable: the write will say so)
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return  # a folder: the rename fails and says so
+    kind = ("a named pipe" if stat.S_ISFIFO(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
+            "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+    raise InputError(f"{path}: is {kind}; outputs are written to regular files (give a "
+                     "file name)")
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
@@ -20,6 +40,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     The temporary name keeps the target's suffix so format detection still works.
     """
     path = Path(path)
+    _refuse_special(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)

@@ -72,6 +72,31 @@ def check_out(out: str | os.PathLike | None, flag: str = "--out") -> Path:
     return p
 
 
+def check_results_folder(out: str | os.PathLike | None, *, marker: str, what: str,
+                         same=None, inputs: Iterable[str | os.PathLike | None] = (),
+                         flag: str = "--out") -> Path:
+    """Validate the folder of a resumable command (``unseen eval``, ``bench``), which
+    writes into ``out`` as it goes rather than swapping it in whole: :func:`check_out`,
+    then an existing ``out`` must be empty or hold ``marker`` (a file only that command
+    writes) for which ``same(path)`` is true; and no input may lie inside it.  A folder
+    of other files, or another command's results, is refused rather than mixed into."""
+    p = check_out(out, flag)
+    if p.is_dir() and any(not e.name.startswith(".") for e in p.iterdir()):
+        m = p / marker
+        if not m.is_file():
+            raise InputError(f"{flag} {p}: holds files that {what} did not write (no {marker}); "
+                             "give a new or empty folder")
+        if same is not None and not same(m):
+            raise InputError(f"{flag} {p}: holds the results of another command ({marker}); "
+                             "give a new or empty folder")
+    target = Path(os.path.realpath(p))
+    for i in inputs:
+        if i is not None and str(i) and Path(os.path.realpath(i)).is_relative_to(target):
+            raise InputError(f"{flag} {p}: contains the input {i}; write the results to "
+                             "another folder")
+    return p
+
+
 def _files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.rglob("*") if p.is_file())
 

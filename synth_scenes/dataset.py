@@ -623,3 +623,35 @@ class Dataset:
     def verify(self) -> list[str]:
         """Every scene whose files differ from the manifest (empty when all match)."""
         return [why for r in self.records if (why := check_scene(self.root, r)) is not None]
+
+
+def verify_dataset(root: str | os.PathLike) -> tuple[int, list[str], list[str]]:
+    """(scenes listed, problems of the whole, problems of listed scenes) of a dataset
+    folder: its configuration
+    (``dataset.json``, whose ``n`` scenes the manifest must list, each once), scene
+    folders the manifest does not list, and every listed scene's files
+    (:meth:`Dataset.verify`)."""
+    root = Path(root)
+    ds = Dataset(root)
+    problems = []
+    try:
+        cfg = json.loads((root / CONFIG_FILE).read_text(encoding="utf-8"))
+        n = cfg["n"]
+        if isinstance(n, bool) or not isinstance(n, int):
+            raise TypeError
+    except (OSError, ValueError, TypeError, KeyError):
+        problems.append(f"{CONFIG_FILE}: missing, or not the configuration of a dataset")
+    else:
+        if len(ds.records) != n:
+            problems.append(f"{MANIFEST}: lists {len(ds.records)} scenes; {CONFIG_FILE} "
+                            f"made {n}")
+    paths = [r["path"] for r in ds.records]
+    if len(set(paths)) != len(paths):
+        problems.append(f"{MANIFEST}: lists a scene more than once")
+    listed = set(paths)
+    for split in SPLITS:
+        if (root / split).is_dir():
+            for d in sorted((root / split).iterdir()):
+                if d.is_dir() and f"{split}/{d.name}" not in listed:
+                    problems.append(f"{split}/{d.name}: a scene folder the manifest does not list")
+    return len(ds), problems, ds.verify()

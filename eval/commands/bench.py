@@ -180,12 +180,12 @@ def plot(results: list[SectionResult], path: Path) -> int:
 def run(args: argparse.Namespace) -> int:
     from pipeline import atomic
     from pipeline.errors import InputError
-    from pipeline.outdir import check_out
+    from pipeline.outdir import check_results_folder
     from pipeline.progress import Progress
 
-    check_out(args.out)
+    check_results_folder(args.out, marker="bench.md", what="unseen bench")
     names = section_names()
-    if args.only:
+    if args.only is not None:
         wanted = [s.strip() for s in args.only.split(",") if s.strip()]
         unknown = [s for s in wanted if s not in names]
         if unknown or not wanted:

@@ -210,6 +210,19 @@ def completion_picture(path: Path, completion, title: str = "", truth_boxes=None
     plt.close(fig)
 
 
+def _rounded(value, digits: int = 9):
+    """``value`` with every float rounded to ``digits`` significant digits: Open3D's ICP
+    sums in threads, so its RMSE and the scores built on it move in the last bits from
+    run to run; the file must not."""
+    if isinstance(value, dict):
+        return {k: _rounded(v, digits) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_rounded(v, digits) for v in value]
+    if isinstance(value, (float, np.floating)):
+        return float(f"{float(value):.{digits}g}")
+    return value
+
+
 def transform_json(c, config, extra: dict | None = None) -> dict:
     """The ``transform.json`` record of a :class:`pipeline.complete.Completion`."""
     return {"format": "unseen.completion", "version": 1, "units": "m",
@@ -221,7 +234,8 @@ def transform_json(c, config, extra: dict | None = None) -> dict:
                                   for a, b, conf in c.matching_ids(spectral=True)],
             "candidates": c.spectral.candidates if c.spectral else c.matching.candidates,
             "pruned": c.spectral.pruned if c.spectral else c.matching.pruned,
-            "alignment": {k: v for k, v in c.alignment.items() if k != "edge_transform"},
+            "alignment": _rounded({k: v for k, v in c.alignment.items()
+                                   if k != "edge_transform"}),
             "edge_transform": np.round(np.asarray(c.alignment.get("edge_transform",
                                                                   np.eye(4))), 9).tolist(),
             "transfer": c.transfer, "carved": c.carved,

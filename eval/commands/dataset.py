@@ -15,6 +15,8 @@ import sys
 from collections import Counter
 from pathlib import Path
 
+from eval.run_checks import check_seed
+
 EPILOG = """\
 make: scene i is of family FAMILIES[i % F] with seed --first-seed + i (so 'unseen synth
 FAMILY --seed SEED' with the same options writes it again); every scene stands in
@@ -80,9 +82,7 @@ def build_config(args: argparse.Namespace):
     if args.views is not None:
         changes["views"] = ds.parse_views(args.views)
     if args.first_seed is not None:
-        if args.first_seed < 0:
-            raise InputError(f"--first-seed: must be a non-negative integer, got "
-                             f"{args.first_seed}")
+        check_seed(args.first_seed, "--first-seed")
         changes["first_seed"] = args.first_seed
     return replace(cfg, **changes)
 
@@ -98,18 +98,20 @@ def run(args: argparse.Namespace) -> int:
 
 def _verify(args: argparse.Namespace) -> int:
     from pipeline.errors import InputError
-    from synth_scenes.dataset import Dataset
+    from synth_scenes.dataset import verify_dataset
 
     if args.dir is None:
         raise InputError("verify: give the dataset folder, e.g. unseen dataset verify data")
     if not args.dir.is_dir():
-        raise InputError(f"{args.dir}: no such folder")
-    ds = Dataset(args.dir)
-    problems = ds.verify()
-    for line in problems:
+        raise InputError(f"{args.dir}: " + ("is not a folder" if args.dir.exists()
+                                            else "no such folder"))
+    n, whole, scenes = verify_dataset(args.dir)
+    for line in whole + scenes:
         print(f"unseen dataset verify: {line}", file=sys.stderr)
-    print(f"{args.dir}: {len(ds) - len(problems)} of {len(ds)} scenes match the manifest")
-    return 1 if problems else 0
+    print(f"{args.dir}: {n - len(scenes)} of {n} scenes match the manifest"
+          + (f"; {len(whole)} problem{'s' if len(whole) != 1 else ''} with the dataset as a "
+             "whole" if whole else ""))
+    return 1 if whole or scenes else 0
 
 
 def _prepare_out(out: Path, cfg) -> None:  # noqa: ANN001 - DatasetConfig

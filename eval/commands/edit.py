@@ -32,7 +32,7 @@ metres along the world floor (x, y of the arrangement's frame, z up).
   a real frame (Shao's Kinect boxes): remove the box leaning on the big one
     unseen run ../shared/data/real/shao_kinect_boxes/3boxes_depth16bits.dat --out runs/shao3
     unseen edit ../shared/data/real/shao_kinect_boxes/3boxes_depth16bits.dat runs/shao3 \
-      --remove cluster1 --out edits/shao3
+      --remove cluster3 --out edits/shao3
 
 An object moves with everything resting on it (transitively) or fixed to it; an object
 only leaning on it stays.  --remove takes what the object carries too.  Removals are

@@ -24,6 +24,8 @@ and gives the first error; tracebacks are in --out/tasks); 2 on bad input.
 The held-out pool (single views of all ten families from seeds nobody developed on):
   unseen eval pool --out results/pool --first-seed 100000 --n 20 --workers 2"""
 
+#: The most scenes per family (``--n``) a suite is asked for.
+MAX_N = 100_000
 #: Packages whose versions command.json records (distribution names; first one installed wins).
 VERSIONED = {"unseen": ("unseen",), "numpy": ("numpy",), "scipy": ("scipy",),
              "mujoco": ("mujoco",), "pybullet": ("pybullet",), "open3d": ("open3d", "open3d-cpu"),
@@ -142,9 +144,11 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"unknown suite {args.suite!r}; available: {', '.join(suites) or 'none'}")
     if args.workers < 1:
         raise InputError(f"--workers: must be at least 1, got {args.workers}")
-    if args.n is not None and args.n < 1:
-        raise InputError(f"--n: must be at least 1, got {args.n}")
+    if args.n is not None and not 1 <= args.n <= MAX_N:
+        raise InputError(f"--n: must be from 1 to {MAX_N}, got {args.n}")
     check_seed(args.seed)
+    if getattr(args, "first_seed", None) is not None:
+        check_seed(args.first_seed, "--first-seed")
     used = [f"--{n}" for n in ("only", "expected", "update") if getattr(args, n, None)]
     if used and args.suite != "regression":
         raise InputError(f"{', '.join(used)}: only for the regression suite, not {args.suite!r}")
@@ -162,9 +166,16 @@ def run(args: argparse.Namespace) -> int:
 
         n = (args.n or 1) if args.suite == "pool" else (args.pool_n or 1)
         seed_range(getattr(args, "first_seed", None), n)  # one line before any work
-    from pipeline.outdir import check_out
+    from pipeline.outdir import check_results_folder
 
-    check_out(args.out)
+    def same_suite(path: Path) -> bool:
+        try:
+            return json.loads(path.read_text("utf-8")).get("suite") == args.suite
+        except (OSError, ValueError, AttributeError):
+            return False
+
+    check_results_folder(args.out, marker="command.json", what=f"unseen eval {args.suite}",
+                         same=same_suite, inputs=[getattr(args, "data", None)])
     if args.dask:
         check_dask(args.dask)
     created = not args.out.exists()

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from eval.run_checks import check_seed
 from pipeline.outdir import out_arg
 
 EPILOG = """writes:
@@ -49,8 +50,9 @@ def run(args: argparse.Namespace) -> int:
     if n < 1 or n > 1000:
         raise InputError(f"--n-per-kind: must be 1-1000, got {n}")
     kinds = FURNITURE
-    if args.kinds:
-        kinds = tuple(k.strip() for k in args.kinds.split(",") if k.strip())
+    check_seed(args.seed)
+    if args.kinds is not None:
+        kinds = tuple(dict.fromkeys(k.strip() for k in args.kinds.split(",") if k.strip()))
         bad = [k for k in kinds if k not in KINDS]
         if bad or not kinds:
             raise InputError(f"--kinds: unknown kind {', '.join(bad) or '(none)'}; "

@@ -99,13 +99,21 @@ def _say(line: str) -> None:
     print(f"unseen regress: {line}", file=sys.stderr)
 
 
-def _out_file(path: Path | None, flag: str) -> None:
+def _out_file(path: Path | None, flag: str, reads=()) -> None:
+    """Refuse an output file that is a folder, lies under a non-folder, or is (or lies
+    in) one of the inputs ``reads`` (the scans, the record): inputs are never written."""
     from pipeline.errors import InputError
 
     if path is None:
         return
     if path.is_dir():
         raise InputError(f"{flag} {path}: is a folder; give a file name")
+    target = path.resolve()
+    for src in reads:
+        src = Path(src).resolve()
+        if target == src or src in target.parents:
+            raise InputError(f"{flag} {path}: is {'' if target == src else 'inside '}the input "
+                             f"{src.name}, which is never written; give a file outside it")
     parent = path.parent if str(path.parent) else Path(".")
     if parent.exists() and not parent.is_dir():
         raise InputError(f"{flag} {path}: {parent} is not a folder")
@@ -138,7 +146,7 @@ def _record(args: argparse.Namespace) -> int:
     if not scans:
         raise InputError(f"{args.dir}: no scans here (a .ply/.pcd/.npz cloud, a scene "
                          "directory or an RGB-D folder per child)")
-    _out_file(path, "--expected")
+    _out_file(path, "--expected", [sc.path for sc in scans])
     tolerances = regress.Tolerances()
     if path.exists():
         try:
@@ -186,10 +194,11 @@ def _verify(args: argparse.Namespace) -> int:
 
     # every check before any work: tolerances, outputs, the folder, the record
     tolerances_from_args(args, regress.Tolerances())
-    _out_file(args.report, "--report")
-    _out_file(args.junit, "--junit")
     scans, skipped = regress.discover(args.dir)
     path = Path(args.expected) if args.expected else Path(args.dir) / regress.RECORD_NAME
+    reads = [sc.path for sc in scans] + [path]
+    _out_file(args.report, "--report", reads)
+    _out_file(args.junit, "--junit", reads)
     record = regress.read_record(path)
     tol = tolerances_from_args(args, record.tolerances)
     found = {s.name for s in scans}

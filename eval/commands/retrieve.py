@@ -7,6 +7,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from eval.run_checks import check_seed
 from pipeline.outdir import out_arg
 
 EPILOG = """RESULT is an 'unseen run' output folder (its arrangement.json: the imagined,
@@ -114,9 +115,10 @@ def run(args: argparse.Namespace) -> int:
     from pipeline.retrieve_output import write_outputs
 
     path = _arrangement_path(args.result, args.structure)
+    check_seed(args.seed)
     kinds = None
-    if args.kinds:
-        kinds = tuple(k.strip() for k in args.kinds.split(",") if k.strip())
+    if args.kinds is not None:
+        kinds = tuple(dict.fromkeys(k.strip() for k in args.kinds.split(",") if k.strip()))
         if not kinds:
             raise InputError("--kinds: give at least one kind, e.g. --kinds chair,table")
     if args.min_cuboids < 1:

@@ -122,8 +122,12 @@ def run(args: argparse.Namespace) -> int:
         try:
             record = regress.read_record(path)
         except InputError as exc:
-            if not update:
-                raise InputError(f"--expected {path}: {exc}; write one with --update") from None
+            if not update:  # the reader's hint names unseen regress; this suite's is --update
+                why = str(exc).split("; write one with")[0]
+                if why.startswith(f"{path}: "):
+                    why = why[len(f"{path}: "):]
+                raise InputError(f"--expected {path}: {why}; write one with unseen eval "
+                                 "regression --update") from None
     scans = out / "scans"
     tasks = [Task(name, case_task, {"family": fam, "seed": seed, "folder": str(scans / name),
                                     "options": opts, "engines": [ENGINE]})

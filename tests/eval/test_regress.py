@@ -151,6 +151,54 @@ def test_record_refuses_to_overwrite(recorded: tuple[Path, str], capsys) -> None
     assert (folder / regress.RECORD_NAME).read_bytes() == before
 
 
+@pytest.mark.parametrize(("argv", "message"), [
+    (["verify", "{d}", "--report", "{d}/stack.ply"], "--report {d}/stack.ply: is the input"),
+    (["verify", "{d}", "--junit", "{d}/scene/scene.json"], "is inside the input scene"),
+    (["verify", "{d}", "--report", "{d}/" + regress.RECORD_NAME], "is the input"),
+    (["record", "{d}", "--update", "--expected", "{d}/scene/scene.json"], "inside the input"),
+])
+def test_outputs_never_go_over_the_inputs(recorded: tuple[Path, str], tmp_path: Path,
+                                          capsys, argv, message) -> None:  # noqa: ANN001
+    # a report, a JUnit file or a record written over a scan (or inside one), or a report
+    # over the record, is refused before any work and every input stays byte-identical
+    folder = _copy(recorded[0], tmp_path / "scans")
+    before = digest(folder)
+    rc = main(["regress", *[a.format(d=folder) for a in argv]])
+    err = capsys.readouterr().err
+    assert rc == 2 and message.format(d=folder) in err and err.count("\n") == 1, err
+    assert digest(folder) == before
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (lambda e: e["truth"].__setitem__("f1", "high"), "truth.f1: expected a finite number"),
+    (lambda e: e["boxes"][0].__setitem__("size", [0.1, float("nan"), 0.1]),
+     "boxes[0].size: expected 3 finite positive numbers"),
+    (lambda e: e["verdicts"].__setitem__("bullet", True), "verdicts: 'bullet'"),
+])
+def test_a_corrupt_record_is_bad_input(recorded: tuple[Path, str], tmp_path: Path, capsys,
+                                       edit, message) -> None:  # noqa: ANN001
+    folder = _copy(recorded[0], tmp_path / "scans")
+    path = folder / regress.RECORD_NAME
+    data = json.loads(path.read_text())
+    edit(data["scans"]["scene"])
+    path.write_text(json.dumps(data))
+    assert main(["regress", "verify", str(folder)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+@pytest.mark.parametrize(("key", "value"), [("seed", -1), ("budget", 1e300)])
+def test_a_record_run_out_of_range_is_bad_input(recorded: tuple[Path, str], tmp_path: Path,
+                                                capsys, key, value) -> None:  # noqa: ANN001
+    folder = _copy(recorded[0], tmp_path / "scans")
+    path = folder / regress.RECORD_NAME
+    data = json.loads(path.read_text())
+    data["run"][key] = value
+    path.write_text(json.dumps(data))
+    assert main(["regress", "verify", str(folder)]) == 2
+    assert f"run.{key}:" in capsys.readouterr().err
+
+
 # ---------------------------------------------------------------------------- verify
 def test_verify_unchanged_passes(recorded: tuple[Path, str], tmp_path: Path, capsys) -> None:  # noqa: ANN001
     folder, _ = recorded

@@ -242,6 +242,31 @@ def test_verify_names_a_changed_file(small, tmp_path, capsys):
     assert f"{rec['path']}/scan/depth.png: hash differs" in err
 
 
+@pytest.mark.parametrize(("damage", "message"), [
+    (lambda d: (d / "manifest.jsonl").write_text(""),
+     "manifest.jsonl: lists 0 scenes; dataset.json made 3"),
+    (lambda d: (d / "manifest.jsonl").write_text(
+        "\n".join((d / "manifest.jsonl").read_text().splitlines()[:2]) + "\n"),
+     "manifest.jsonl: lists 2 scenes; dataset.json made 3"),
+    (lambda d: (d / "dataset.json").unlink(), "dataset.json: missing, or not the configuration"),
+    (lambda d: (d / "dataset.json").write_text("[]"), "dataset.json: missing, or not the"),
+    (lambda d: (d / "train" / "stack-000099").mkdir(),
+     "train/stack-000099: a scene folder the manifest does not list"),
+])
+def test_verify_judges_the_dataset_as_a_whole(small, tmp_path, capsys, damage, message):
+    # a manifest emptied or cut short, a configuration gone, a scene folder it does not
+    # list: each fails verify (exit 1), naming what is wrong; the intact copy passes
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(small, copy)
+    assert main(["dataset", "verify", str(copy)]) == 0
+    capsys.readouterr()
+    damage(copy)
+    assert main(["dataset", "verify", str(copy)]) == 1
+    assert message in capsys.readouterr().err
+
+
 def test_a_failed_scene_exits_1_and_the_rest_is_written(tmp_path, monkeypatch, capsys):
     real = ds.make_scene
 
