@@ -73,7 +73,7 @@ def validate_args(args: argparse.Namespace) -> None:
             "must be a positive number of raw units per metre", lo_open=True)
     _finite(getattr(args, "scale", None), "--scale", 1e-6, 1e6,
             "must be metres per input unit in [1e-06, 1e+06] (0.001 for mm)")
-    check_out(args.out)
+    check_out(args.out, command="run")
 
 
 def inputs(args: argparse.Namespace) -> list[str]:

@@ -213,7 +213,7 @@ def run_full(args: argparse.Namespace, config) -> tuple[int, str]:
     t0 = time.perf_counter()
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    with output_folder(out, inputs=inputs(args)) as tmp:
+    with output_folder(out, inputs=inputs(args), command="run") as tmp:
         with Progress(None, "unseen run") as bar:
             result = run_scan(args.input, config, progress=lambda name: bar.update(note=name),
                               search_progress=lambda done, total: bar.update(

@@ -40,12 +40,33 @@ MANIFEST = "manifest.json"
 FORBIDDEN_ROOTS = (Path("/proc"), Path("/sys"), Path("/dev"))
 
 
-def check_out(out: str | os.PathLike | None, flag: str = "--out") -> Path:
+def written_by(folder: Path) -> str | None:
+    """The command whose results ``folder`` holds (its ``manifest.json``'s ``command``;
+    None when unknown: no manifest, or one written before manifests named it)."""
+    try:
+        data = json.loads((Path(folder) / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    cmd = data.get("command") if isinstance(data, dict) else None
+    return cmd if isinstance(cmd, str) else None
+
+
+def _refuse_other_results(p: Path, command: str | None, flag: str) -> None:
+    """InputError when the folder ``p`` holds another command's results."""
+    other = written_by(p) if command is not None and p.is_dir() else None
+    if other is not None and other != command:
+        raise InputError(f"{flag} {p}: holds the results of unseen {other}, which unseen "
+                         f"{command} would replace; choose another folder (or remove it)")
+
+
+def check_out(out: str | os.PathLike | None, flag: str = "--out",
+              command: str | None = None) -> Path:
     """Validate an output folder path before any work; returns it as a :class:`Path`.
 
     Refused: an empty path, a path under ``/proc``, ``/sys`` or ``/dev``, an existing
-    file, an existing folder that is not writable, and a missing folder whose nearest
-    existing parent is not a writable folder.
+    file, an existing folder that is not writable, a missing folder whose nearest
+    existing parent is not a writable folder, and (with ``command``) a folder holding
+    the results of another command.
     """
     if out is None or str(out).strip() == "":
         raise InputError(f"{flag}: empty path; give the folder to write, e.g. {flag} result")
@@ -61,6 +82,7 @@ def check_out(out: str | os.PathLike | None, flag: str = "--out") -> Path:
             raise InputError(f"{flag} {p}: exists and is not a folder; choose another path")
         if not os.access(p, os.W_OK | os.X_OK) or not os.access(real.parent, os.W_OK | os.X_OK):
             raise InputError(f"{flag} {p}: the folder (or the folder holding it) is not writable")
+        _refuse_other_results(p, command, flag)
         return p
     parent = full.parent
     while not parent.exists():
@@ -101,8 +123,9 @@ def _files(folder: Path) -> list[Path]:
     return sorted(p for p in folder.rglob("*") if p.is_file())
 
 
-def manifest_text(folder: Path) -> str:
-    """``manifest.json`` of a folder: every file (relative path, bytes, SHA-256), sorted."""
+def manifest_text(folder: Path, command: str | None = None) -> str:
+    """``manifest.json`` of a folder: the command that wrote it (when given) and every
+    file (relative path, bytes, SHA-256), sorted."""
     entries = []
     for p in _files(folder):
         rel = p.relative_to(folder).as_posix()
@@ -113,8 +136,10 @@ def manifest_text(folder: Path) -> str:
             for block in iter(lambda: fh.read(1 << 20), b""):
                 h.update(block)
         entries.append({"path": rel, "bytes": p.stat().st_size, "sha256": h.hexdigest()})
-    return json.dumps({"format": "unseen.manifest", "version": 1, "files": entries},
-                      indent=1) + "\n"
+    head = {"format": "unseen.manifest", "version": 1}
+    if command is not None:
+        head["command"] = command
+    return json.dumps({**head, "files": entries}, indent=1) + "\n"
 
 
 _RENAME_EXCHANGE = 2
@@ -139,7 +164,7 @@ def _exchange(a: Path, b: Path) -> bool:
 
 @contextlib.contextmanager
 def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike] = (),
-                  flag: str = "--out") -> Iterator[Path]:
+                  flag: str = "--out", command: str | None = None) -> Iterator[Path]:
     """Lock ``out``, yield a fresh sibling folder to write into, swap it in on success.
 
     Parameters
@@ -147,6 +172,8 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
     out : the output folder (validated again by :func:`check_out`)
     inputs : paths the command reads; none may lie inside ``out``
     flag : the option name used in messages
+    command : the command writing (``run``, ``synth``, ...): recorded in the manifest;
+        a folder holding another command's results is refused, not replaced
 
     Yields
     ------
@@ -154,7 +181,7 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         The temporary folder; write every output there.  On an exception nothing of it
         is kept and ``out`` is left as it was.
     """
-    p = check_out(out, flag)
+    p = check_out(out, flag, command)
     target = Path(os.path.realpath(p))
     for i in inputs:
         if i is not None and str(i) and Path(os.path.realpath(i)).is_relative_to(target):
@@ -176,6 +203,7 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
         if not created and any(target.iterdir()) and not (target / MANIFEST).is_file():
             raise InputError(f"{flag} {p}: the folder holds files unseen did not write (no "
                              f"{MANIFEST}); choose a new or empty folder")
+        _refuse_other_results(target, command, flag)
         name, parent = target.name, target.parent
         for stale in parent.glob(f".{name}.tmp-*"):  # left by a killed run; we hold the lock
             shutil.rmtree(stale, ignore_errors=True)
@@ -189,7 +217,7 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
             os.umask(umask)
             os.chmod(tmp, 0o777 & ~umask)
             yield tmp
-            (tmp / MANIFEST).write_text(manifest_text(tmp), encoding="utf-8")
+            (tmp / MANIFEST).write_text(manifest_text(tmp, command), encoding="utf-8")
             if not _exchange(tmp, target):
                 old = Path(tempfile.mkdtemp(prefix=f".{name}.tmp-", dir=parent))
                 os.rename(target, old / "old")

@@ -287,12 +287,13 @@ def run(args: argparse.Namespace) -> int:
     _check_input(args.partial, "PARTIAL")
     _check_input(args.template, "--template")
     config = _config(args)
-    check_out(args.out)
+    check_out(args.out, command="complete")
     out = Path(args.out)
     run_cfg = _run_config(args)
     command = "unseen complete " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "complete" else f"unseen complete {args.partial}"
-    with output_folder(out, inputs=[args.partial, args.template]) as tmp:
+    with output_folder(out, inputs=[args.partial, args.template],
+                       command="complete") as tmp:
         # progress on stderr, drawn only when it is a terminal
         with Progress(3, "unseen complete") as bar:
             bar.update(0, note=f"pipeline on {args.partial}")

@@ -41,10 +41,10 @@ def run(args: argparse.Namespace) -> int:
     if args.family not in KINDS:
         raise InputError(f"--family: unknown scene family {args.family!r}; choose one of: "
                          + ", ".join(KINDS))
-    check_out(args.out)
+    check_out(args.out, command="demo")
     t0 = time.perf_counter()
     out = Path(args.out)
-    with output_folder(out) as tmp:
+    with output_folder(out, command="demo") as tmp:
         made, scan, initial, result, engines = _make(args, tmp, out)
     scene_dir, result_dir = out / "scene", out / "result"
     return _summary(args, made, initial, result, engines, scene_dir, result_dir, t0)

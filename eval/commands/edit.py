@@ -197,7 +197,7 @@ def run(args: argparse.Namespace) -> int:
     if args.depth_scale is not None and not (math.isfinite(args.depth_scale)
                                              and args.depth_scale > 0):
         raise InputError(f"--depth-scale: must be a positive number, got {args.depth_scale}")
-    check_out(args.out)
+    check_out(args.out, command="edit")
     result_file = _result_file(args.result)
     arr = read_arrangement(result_file)
     scan = load(args.scan, LoadOptions(**frame_options(args)))
@@ -216,7 +216,8 @@ def run(args: argparse.Namespace) -> int:
     rec = edit_record(plan, images, params, str(args.scan), str(args.result))
     moved_objects = {o for g in plan.groups if g.operation.kind == "move" for o in g.objects}
     rec["drawn_as_models"] = sorted(moved_objects & set(meshes or {}))
-    with output_folder(args.out, inputs=[args.scan, args.result, args.retrieved]) as tmp:
+    with output_folder(args.out, inputs=[args.scan, args.result, args.retrieved],
+                       command="edit") as tmp:
         write_png(tmp / "before.png", images.before)
         write_png(tmp / "after.png", images.after)
         write_png(tmp / "compare.png", side_by_side([images.before, images.after],

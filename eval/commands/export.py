@@ -45,11 +45,11 @@ def run(args: argparse.Namespace) -> int:
     from simulate.export import export_all
 
     check_mu(args.mu)
-    check_out(args.out)
+    check_out(args.out, command="export")
     arr = read_arrangement(args.arrangement)
     mu = file_mu(arr, args.mu, args.arrangement)
     fixed_node_pairs(arr, find_contacts(arr))  # a listed fixed contact must touch, as in check
-    with output_folder(args.out, inputs=[args.arrangement]) as tmp:
+    with output_folder(args.out, inputs=[args.arrangement], command="export") as tmp:
         written = export_all(arr, tmp, welds=args.welds, mu=mu)
     written = {k: args.out / v.relative_to(tmp) for k, v in written.items()}
     if args.json:

@@ -57,9 +57,9 @@ def run(args: argparse.Namespace) -> int:
         if bad or not kinds:
             raise InputError(f"--kinds: unknown kind {', '.join(bad) or '(none)'}; "
                              f"choose from {', '.join(KINDS)}")
-    check_out(args.out)
+    check_out(args.out, command="models")
     specs = make_models(np.random.default_rng(args.seed), n, kinds)
-    with output_folder(args.out) as tmp:
+    with output_folder(args.out, command="models") as tmp:
         index = write_repository(tmp, specs, seed=args.seed)
     counts: dict[str, int] = {}
     for e in index["models"]:

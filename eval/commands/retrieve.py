@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"--stretch-cost: a number >= 0, got {args.stretch_cost}")
     if args.scan is not None and not args.scan.exists():
         raise InputError(f"--scan {args.scan}: no such file or folder")
-    check_out(args.out)
+    check_out(args.out, command="retrieve")
     arr = read_arrangement(path)
     if not arr.cuboids:
         raise InputError(f"{path}: no cuboids to retrieve models for")
@@ -162,7 +162,7 @@ def run(args: argparse.Namespace) -> int:
               "icp": (not args.no_icp) and args.scan is not None, "seed": args.seed,
               "kinds": list(kinds) if kinds else "all", "min_cuboids": args.min_cuboids}
     inputs = [args.result, args.models] + ([args.scan] if args.scan is not None else [])
-    with output_folder(args.out, inputs=inputs) as tmp:
+    with output_folder(args.out, inputs=inputs, command="retrieve") as tmp:
         write_outputs(tmp, arr, models, results, header, notes, image, intr, T)
     if args.json:
         print((args.out / "retrieval.json").read_text(encoding="utf-8"), end="")

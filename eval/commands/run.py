@@ -234,7 +234,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     command = "unseen run " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
         if len(sys.argv) > 1 and sys.argv[1] == "run" else f"unseen run {args.input}"
-    with output_folder(out, inputs=inputs(args)) as tmp:
+    with output_folder(out, inputs=inputs(args), command="run") as tmp:
         with Progress(None, "unseen run") as bar:
             scan, arr, report = run_initial(args, progress=lambda name: bar.update(note=name))
         write_initial_outputs(tmp, scan, arr, report, command, args.seed)

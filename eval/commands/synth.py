@@ -112,9 +112,9 @@ def _run(args: argparse.Namespace) -> int:
                          f"takes about {MB_PER_VIEW} MB of memory while the scan is made: "
                          f"{args.views} views would need about "
                          f"{args.views * MB_PER_VIEW / 1000:.1f} GB)")
-    check_out(args.out)
+    check_out(args.out, command="synth")
     engines = ("mujoco", "pybullet") if args.engine == "all" else (args.engine,)
-    with output_folder(args.out) as tmp, Progress(None, f"synth {args.kind}") as bar:
+    with output_folder(args.out, command="synth") as tmp, Progress(None, f"synth {args.kind}") as bar:
         result = make_scene_dir(args.kind, tmp, args.seed, views=args.views,
                                 noise=args.noise, renderer=args.renderer, engines=engines,
                                 max_attempts=args.max_attempts, n_boxes=args.n_boxes,

@@ -39,7 +39,7 @@ def real_task(rng, name: str, scan: str, out: str, seed: int = 0) -> dict:  # no
     result = run_scan(scan, config)
     arr = result.arrangement
     engines = check_engines(arr, config.imagine.mu)
-    with output_folder(Path(out) / "scans" / name) as tmp:
+    with output_folder(Path(out) / "scans" / name, command="run") as tmp:
         write_full_outputs(tmp, result.scan, result.initial, result, result.initial_report,
                            engines, f"unseen run {Path(scan).name}", seed)
     s = score(arr, _input_points(result), ann)

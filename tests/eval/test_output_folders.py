@@ -54,6 +54,24 @@ def test_export_removes_files_the_new_scene_does_not_have(tmp_path, capsys):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.json", "out", "small.json"]
 
 
+def test_another_commands_results_are_refused_not_replaced(tmp_path, capsys):
+    # the manifest names the command that wrote the folder: the same command replaces
+    # it, another one (synth over an export) is refused before any work, the folder intact
+    arr = tmp_path / "a.json"
+    write_arrangement(towers(2), arr)
+    out = tmp_path / "out"
+    assert main(["export", str(arr), "--out", str(out)]) == 0
+    assert json.loads((out / MANIFEST).read_text())["command"] == "export"
+    before = complete(out)
+    assert main(["export", str(arr), "--out", str(out)]) == 0  # the same command: replaced
+    assert complete(out) == before
+    capsys.readouterr()
+    assert main(["synth", "stack", "--out", str(out), "--seed", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "holds the results of unseen export, which unseen synth would replace" in err
+    assert err.count("\n") == 1 and complete(out) == before
+
+
 def test_a_second_command_on_a_locked_folder_is_refused(tmp_path, capsys):
     src = tmp_path / "a.json"
     write_arrangement(towers(2), src)
