@@ -94,6 +94,22 @@ def check_out(out: str | os.PathLike | None, flag: str = "--out",
     return p
 
 
+def _refuse_inputs(p: Path, inputs: Iterable[str | os.PathLike | None], flag: str) -> None:
+    """InputError when the output folder ``p`` contains one of ``inputs``, or lies inside
+    an input folder (writing there would change the input)."""
+    target = Path(os.path.realpath(p))
+    for i in inputs:
+        if i is None or not str(i):
+            continue
+        src = Path(os.path.realpath(i))
+        if src.is_relative_to(target):
+            raise InputError(f"{flag} {p}: contains the input {i}; write the results to "
+                             "another folder")
+        if src.is_dir() and target.is_relative_to(src):
+            raise InputError(f"{flag} {p}: lies inside the input {i}, which is never "
+                             "changed; write the results to another folder")
+
+
 def check_results_folder(out: str | os.PathLike | None, *, marker: str, what: str,
                          same=None, inputs: Iterable[str | os.PathLike | None] = (),
                          flag: str = "--out") -> Path:
@@ -111,11 +127,7 @@ def check_results_folder(out: str | os.PathLike | None, *, marker: str, what: st
         if same is not None and not same(m):
             raise InputError(f"{flag} {p}: holds the results of another command ({marker}); "
                              "give a new or empty folder")
-    target = Path(os.path.realpath(p))
-    for i in inputs:
-        if i is not None and str(i) and Path(os.path.realpath(i)).is_relative_to(target):
-            raise InputError(f"{flag} {p}: contains the input {i}; write the results to "
-                             "another folder")
+    _refuse_inputs(p, inputs, flag)
     return p
 
 
@@ -183,10 +195,7 @@ def output_folder(out: str | os.PathLike, *, inputs: Iterable[str | os.PathLike]
     """
     p = check_out(out, flag, command)
     target = Path(os.path.realpath(p))
-    for i in inputs:
-        if i is not None and str(i) and Path(os.path.realpath(i)).is_relative_to(target):
-            raise InputError(f"{flag} {p}: contains the input {i}; write the results to "
-                             "another folder")
+    _refuse_inputs(p, inputs, flag)
     created = not target.exists()
     try:
         target.mkdir(parents=True, exist_ok=True)

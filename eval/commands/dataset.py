@@ -16,6 +16,7 @@ from collections import Counter
 from pathlib import Path
 
 from eval.run_checks import check_seed
+from pipeline.outdir import out_arg
 
 EPILOG = """\
 make: scene i is of family FAMILIES[i % F] with seed --first-seed + i (so 'unseen synth
@@ -41,7 +42,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                                                    "its manifest")
     p.add_argument("dir", nargs="?", type=Path, default=None, metavar="DIR",
                    help="verify: the dataset folder")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+    p.add_argument("--out", type=out_arg, default=None, metavar="DIR",
                    help="make: the dataset folder (created; a rerun resumes)")
     p.add_argument("--families", default=None, metavar="LIST",
                    help="'all' (default) or a comma list, e.g. table,chair,room")

@@ -100,6 +100,18 @@ def stack_scene(tmp_path_factory) -> Path:
     return out
 
 
+def test_results_never_go_inside_an_input_folder(stack_scene, tmp_path, capsys):
+    # a result folder inside the scan's folder would change the input: refused, one
+    # line, and the scan folder keeps exactly its files
+    scene = tmp_path / "scene"
+    shutil.copytree(stack_scene, scene)
+    before = sorted(p.relative_to(scene).as_posix() for p in scene.rglob("*"))
+    assert main(["run", str(scene), "--out", str(scene / "result"), "--stage", "initial"]) == 2
+    err = capsys.readouterr().err
+    assert "lies inside the input" in err and err.count("\n") == 1
+    assert sorted(p.relative_to(scene).as_posix() for p in scene.rglob("*")) == before
+
+
 def test_a_run_killed_midway_leaves_the_old_complete_set(stack_scene, tmp_path, capsys):
     out = tmp_path / "out"
     args = ["run", str(stack_scene), "--stage", "initial", "--out", str(out)]
