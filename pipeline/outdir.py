@@ -15,8 +15,9 @@ A reader therefore sees the old complete set or the new complete set, never a mi
 files an earlier run wrote and this one does not (``urdf/body7.urdf``) are gone; a
 killed command leaves only its hidden sibling, removed by the next command on that
 folder.  An existing target must be empty or hold a ``manifest.json`` (a folder unseen
-wrote): a folder of other files is refused rather than replaced, and so is a target that
-contains one of the command's inputs.
+wrote) naming the same command, or none (written before manifests named it): a folder
+of other files or of another command's results is refused rather than replaced, and so
+is a target that contains one of the command's inputs or lies inside an input folder.
 """
 
 from __future__ import annotations
