@@ -3,7 +3,8 @@
 ``make`` plans the scenes (:func:`synth_scenes.dataset.plan`), makes each one as a task
 of :func:`eval.runner.run_tasks` (local processes or a Dask cluster), then writes
 ``manifest.jsonl``, the dataset card ``DATASET.md`` with ``stats.png``, and optionally the
-BOP export.  ``verify`` checks every scene's files against the manifest's hashes.
+BOP export.  ``verify`` checks every scene's files against the manifest's hashes, and the
+dataset as a whole (:func:`synth_scenes.dataset.verify_dataset`).
 """
 
 from __future__ import annotations
@@ -30,6 +31,9 @@ A rerun with the same options resumes: scenes already made and unchanged are kep
 Layout: DIR/<split>/<family>-<seed>/ (scene directories), DIR/manifest.jsonl,
 DIR/dataset.json, DIR/DATASET.md, DIR/stats.png, DIR/bop/ (--bop), DIR/.run/ (task
 records and timings).
+verify: every scene's files against their hashes in the manifest, the manifest's length
+against dataset.json, and no scene folder the manifest does not list:
+  unseen dataset verify data
 Exit 0 done; 1 some scene failed (how many and the first error on stderr; rerun to
 resume) or verify found a mismatch; 2 bad input."""
 

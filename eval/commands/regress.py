@@ -58,10 +58,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                          "my_scans --engine mujoco\n\n'unseen regress --help': what is "
                          "recorded and compared.")
     rec.add_argument("dir", metavar="DIR", help="folder of scans")
-    rec.add_argument("--engine", default="analytic",
+    rec.add_argument("--engine", default=None,
                      choices=["analytic", "mujoco", "pybullet", "all"],
-                     help="verdicts to record besides the analytic statics (default analytic "
-                          "only; all: MuJoCo and PyBullet)")
+                     help="verdicts to record besides the analytic statics (default: analytic "
+                          "only, or with --update those of the record it replaces; all: "
+                          "MuJoCo and PyBullet)")
     rec.add_argument("--workers", type=int, default=1, help="local worker processes (default 1)")
     rec.add_argument("--update", "--force", action="store_true",
                      help="record again over an existing expectation file (its tolerances "
@@ -148,12 +149,15 @@ def _record(args: argparse.Namespace) -> int:
                          "directory or an RGB-D folder per child)")
     _out_file(path, "--expected", [sc.path for sc in scans])
     tolerances = regress.Tolerances()
+    engines = ()
     if path.exists():
         try:
-            tolerances = regress.read_record(path).tolerances
+            old = regress.read_record(path)
+            tolerances, engines = old.tolerances, tuple(old.engines)
         except InputError:
             pass  # a broken file is replaced whole
-    engines = {"analytic": (), "all": regress.ENGINES}.get(args.engine, (args.engine,))
+    if args.engine is not None:
+        engines = {"analytic": (), "all": regress.ENGINES}.get(args.engine, (args.engine,))
     if skipped:
         _say(f"skipped (not a scan unseen run takes): {', '.join(skipped)}")
     entries = regress.measure_scans(scans, engines, workers=args.workers, label="regress record")

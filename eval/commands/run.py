@@ -48,6 +48,9 @@ folder, --pose) the floor is the pose's world z = 0, and RANSAC only refines it;
     unseen run frame_dir --out out --up=-y --floor-height -1.2
 Without either the floor is the lowest large plane RANSAC finds; if it is not found, say
 which way is up in the input frame: --up=-y (camera frames, y down), --up z (z-up clouds).
+
+exit status: 0 the result stands; 1 it is the best effort and does not (report.md names
+the boxes nothing could hold: several real frames above end so); 2 bad input.
 """
 
 

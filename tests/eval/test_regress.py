@@ -151,6 +151,21 @@ def test_record_refuses_to_overwrite(recorded: tuple[Path, str], capsys) -> None
     assert (folder / regress.RECORD_NAME).read_bytes() == before
 
 
+def test_update_keeps_the_recorded_engines(recorded: tuple[Path, str], tmp_path: Path) -> None:
+    # recorded with --engine mujoco: --update without --engine records MuJoCo's verdicts
+    # again (as README's "after an intended change" says), --engine analytic drops them
+    folder = _copy(recorded[0], tmp_path / "scans")
+    path = folder / regress.RECORD_NAME
+    assert json.loads(path.read_text())["run"]["engines"] == ["mujoco"]
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        assert main(["regress", "record", str(folder), "--update"]) == 0
+        data = json.loads(path.read_text())
+        assert data["run"]["engines"] == ["mujoco"]
+        assert all("mujoco" in e["verdicts"] for e in data["scans"].values())
+        assert main(["regress", "record", str(folder), "--update", "--engine", "analytic"]) == 0
+    assert json.loads(path.read_text())["run"]["engines"] == []
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["verify", "{d}", "--report", "{d}/stack.ply"], "--report {d}/stack.ply: is the input"),
     (["verify", "{d}", "--junit", "{d}/scene/scene.json"], "is inside the input scene"),
