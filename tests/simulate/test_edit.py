@@ -324,6 +324,26 @@ def test_no_camera_or_no_image_exit_2(scene_and_result, capsys, tmp_path):
     assert "no colour image" in capsys.readouterr().err
 
 
+def test_a_result_of_another_camera_is_refused(scene_and_result, capsys, tmp_path):
+    # the result's recorded intrinsics must be the scan's: a result whose frame had
+    # another focal length is the run of another scan (same image size or not)
+    import json as _json
+
+    from eval.cli import main
+
+    root = scene_and_result
+    data = _json.loads((root / "result" / "arrangement.json").read_text())
+    fx = data["meta"]["intrinsics"]["fx"]
+    data["meta"]["intrinsics"]["fx"] = fx + 5.0
+    other = tmp_path / "other.json"
+    other.write_text(_json.dumps(data))
+    assert main(["edit", str(root / "scene"), str(other), "--remove", "box0",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"made from a frame with fx {fx + 5.0:g} but SCAN has fx {fx:g}" in err
+    assert not (tmp_path / "o").exists()
+
+
 @pytest.mark.slow
 def test_edits_suite_quick(tmp_path):
     import argparse
