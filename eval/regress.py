@@ -472,11 +472,13 @@ def read_record(path: str | Path) -> Record:
         budget, seed = float(run.get("budget", BUDGET)), int(run.get("seed", SEED))
     except (TypeError, ValueError, OverflowError):
         raise InputError(f"{path}: run.budget and run.seed must be numbers") from None
-    if not (math.isfinite(budget) and 0 < budget <= 86400):
-        raise InputError(f"{path}: run.budget: a positive number of seconds up to a day, "
-                         f"got {budget}")
-    if not 0 <= seed < 2**63:
-        raise InputError(f"{path}: run.seed: an integer from 0 to {2**63 - 1}, got {seed}")
+    from eval.run_checks import BUDGET_RANGE, SEED_MAX
+
+    if not (math.isfinite(budget) and BUDGET_RANGE[0] <= budget <= BUDGET_RANGE[1]):
+        raise InputError(f"{path}: run.budget: seconds in [{BUDGET_RANGE[0]:g}, "
+                         f"{BUDGET_RANGE[1]:g}], got {budget}")
+    if not 0 <= seed <= SEED_MAX:
+        raise InputError(f"{path}: run.seed: an integer from 0 to {SEED_MAX}, got {seed}")
     return Record({k: dict(v) for k, v in scans.items()}, engines, budget, seed,
                   Tolerances.from_json(data.get("tolerances", {}), f"{path}: tolerances"))
 

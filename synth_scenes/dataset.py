@@ -627,10 +627,9 @@ class Dataset:
 
 def verify_dataset(root: str | os.PathLike) -> tuple[int, list[str], list[str]]:
     """(scenes listed, problems of the whole, problems of listed scenes) of a dataset
-    folder: its configuration
-    (``dataset.json``, whose ``n`` scenes the manifest must list, each once), scene
-    folders the manifest does not list, and every listed scene's files
-    (:meth:`Dataset.verify`)."""
+    folder.  The whole: its configuration (``dataset.json``, whose ``n`` scenes the
+    manifest must list, each once) and scene folders the manifest does not list; the
+    scenes: every listed scene's files (:meth:`Dataset.verify`)."""
     root = Path(root)
     ds = Dataset(root)
     problems = []
