@@ -261,7 +261,8 @@ def report_markdown(c, record: dict, command: str) -> str:
              f"{c.alignment.get('edge_score', float('nan')):.4f} m",
              f"- ICP: fitness {icp.get('fitness_before', 0):.3f} -> {icp.get('fitness', 0):.3f}, "
              f"RMSE {icp.get('rmse_before', 0):.4f} -> {icp.get('rmse', 0):.4f} m"
-             f"{'' if icp.get('kept', True) else ' (not kept: it moved away)'}",
+             f"{'' if icp.get('kept', True) else ' (not kept: it moved away)'}"
+             + (f" **warning: {_poor_fit(icp)}**" if _poor_fit(icp) else ""),
              f"- transfer: {c.transfer}; {record['points']['template']} points carried over, "
              f"{c.carved} dropped where the partial scan saw through them", "",
              "## Matching", "", "Once aligned (the transfer follows it):", "",
@@ -327,4 +328,21 @@ def run(args: argparse.Namespace) -> int:
         print(f"{c.objects[1]}: {len(c.matching.pairs)} parts matched, "
               f"{line['template_points']} points carried over to {line['partial_points']}, "
               f"ICP fitness {icp.get('fitness', 0):.2f} -> {out}")
+    if _poor_fit(icp):
+        print(f"unseen complete: warning: {_poor_fit(icp)}", file=sys.stderr)
     return 0
+
+
+#: Below this ICP fitness (the share of partial points within ``icp_distance`` of the
+#: aligned template) the template does not explain the partial object.
+POOR_FITNESS = 0.1
+
+
+def _poor_fit(icp: dict) -> str | None:
+    """The warning for an alignment that explains almost none of the partial points."""
+    f = icp.get("fitness")
+    if f is None or f >= POOR_FITNESS:
+        return None
+    return (f"ICP fitness {f:.2f}: fewer than {POOR_FITNESS:.0%} of the partial object's "
+            "points lie near the aligned template; the objects may not be of one kind, and "
+            "the completion is not to be trusted")

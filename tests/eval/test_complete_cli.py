@@ -124,3 +124,14 @@ def test_completion_suite_quick(tmp_path):
     for name in ("completion.md", "completion.png", "pairs.csv"):
         assert (tmp_path / name).is_file()
     assert list((tmp_path / "pictures").glob("chair-*.png"))
+
+
+def test_a_poor_alignment_is_named_a_warning():
+    # below POOR_FITNESS of the partial points near the aligned template, the run says
+    # the completion is not to be trusted; at or above it, nothing is said
+    from eval.commands.complete import POOR_FITNESS, _poor_fit
+
+    assert _poor_fit({"fitness": POOR_FITNESS}) is None
+    assert _poor_fit({}) is None
+    w = _poor_fit({"fitness": POOR_FITNESS - 0.01})
+    assert w is not None and "ICP fitness 0.09" in w and "not to be trusted" in w
