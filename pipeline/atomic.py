@@ -18,6 +18,7 @@ def _refuse_special(path: Path) -> None:
     import stat
 
     from .errors import InputError
+    from .safe_read import special_kind
 
     try:
         mode = os.stat(path).st_mode
@@ -25,11 +26,8 @@ def _refuse_special(path: Path) -> None:
         return  # nothing there yet (or unreadable: the write will say so)
     if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
         return  # a folder: the rename fails and says so
-    kind = ("a named pipe" if stat.S_ISFIFO(mode) else
-            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
-            "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
-    raise InputError(f"{path}: is {kind}; outputs are written to regular files (give a "
-                     "file name)")
+    raise InputError(f"{path}: is {special_kind(mode)}; outputs are written to regular files "
+                     "(give a file name)")
 
 
 @contextlib.contextmanager

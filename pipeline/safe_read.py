@@ -36,6 +36,14 @@ MAX_INT_DIGITS = 20
 _STRINGS = re.compile(rb'"(?:[^"\\]|\\.)*"', re.DOTALL)
 
 
+def special_kind(mode: int) -> str:
+    """What a non-regular file of ``os.stat`` mode ``mode`` is, for a message: ``a named
+    pipe``, ``a device``, ``a socket`` or ``not a regular file``."""
+    return ("a named pipe" if stat.S_ISFIFO(mode) else
+            "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
+            "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+
+
 def regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     """``path`` when it names an existing regular file (symlinks followed); else InputError.
 
@@ -55,10 +63,8 @@ def regular_file(path: str | os.PathLike, what: str = "file") -> Path:
     if stat.S_ISDIR(st.st_mode):
         raise InputError(f"{p}: is a folder, expected a {what}")
     if not stat.S_ISREG(st.st_mode):
-        kind = ("a named pipe" if stat.S_ISFIFO(st.st_mode) else
-                "a device" if stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode) else
-                "a socket" if stat.S_ISSOCK(st.st_mode) else "not a regular file")
-        raise InputError(f"{p}: is {kind}; the {what} must be a regular file")
+        raise InputError(f"{p}: is {special_kind(st.st_mode)}; the {what} must be a regular "
+                         "file")
     return p
 
 

@@ -41,11 +41,12 @@ def _is_arrangement(path: Path) -> bool:
     """Whether ``path`` holds an arrangement file (its JSON's ``format``), which an import
     may replace; any other file is a user's and is never overwritten."""
     from pipeline.arrangement_io import FORMAT
+    from pipeline.errors import InputError
+    from pipeline.safe_read import load_json
 
     try:
-        with open(path, "rb") as f:
-            data = json.loads(f.read(1 << 26))
-    except (OSError, ValueError):
+        data = load_json(path, "arrangement file")
+    except (InputError, OSError):
         return False
     return isinstance(data, dict) and data.get("format") == FORMAT
 

@@ -194,6 +194,7 @@ def tolerances_from_args(args: argparse.Namespace, base):  # noqa: ANN001, ANN20
 
 def _verify(args: argparse.Namespace) -> int:
     from eval import regress
+    from eval.regress_report import junit_xml, markdown_report
     from pipeline import atomic
 
     # every check before any work: tolerances, outputs, the folder, the record
@@ -215,11 +216,11 @@ def _verify(args: argparse.Namespace) -> int:
                                     workers=args.workers, label="regress verify")
     v = regress.verify_entries(entries, record, tol, not_recorded=not_recorded, missing=missing,
                                skipped_files=skipped)
-    report = regress.markdown_report(v)
+    report = markdown_report(v)
     if args.report is not None:
         atomic.write_text(args.report, report)
     if args.junit is not None:
-        atomic.write_text(args.junit, regress.junit_xml(v))
+        atomic.write_text(args.junit, junit_xml(v))
     if args.report is None:
         sys.stdout.write(report)
     else:

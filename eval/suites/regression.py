@@ -97,6 +97,7 @@ def figures(entry: dict) -> dict:
 
 def run(args: argparse.Namespace) -> int:
     from eval import regress
+    from eval.regress_report import junit_xml, markdown_report
     from eval.runner import Task
     from eval.suites._common import failures_markdown, run_suite_tasks, write_table
     from eval.suites._scenes import BUDGET
@@ -151,8 +152,8 @@ def run(args: argparse.Namespace) -> int:
         run_names = [n for n in entries if n in record.scans]
         v = regress.verify_entries({n: entries[n] for n in run_names}, record,
                                    not_recorded=[n for n in entries if n not in record.scans])
-        atomic.write_text(out / "regress.md", regress.markdown_report(v, "Regression suite"))
-        atomic.write_text(out / "regression.xml", regress.junit_xml(v, "unseen eval regression"))
+        atomic.write_text(out / "regress.md", markdown_report(v, "Regression suite"))
+        atomic.write_text(out / "regression.xml", junit_xml(v, "unseen eval regression"))
         problems = v.problems
         verdict = ("REGRESSED:\n" + "\n".join(f"- {p}" for p in problems)) if problems else \
             "no regression"
