@@ -1,4 +1,4 @@
-"""Weight goes down: what rests on furniture is carried from below, not by a wall's friction.
+"""Weight goes down: what rests on furniture is carried from below, not by a wall or the floor.
 
 Evidence: the statics of the searched arrangement (which contacts carry load), the walls,
 and the depth views.  Regularity: a lamp, a plant or a monitor standing on a night stand,
@@ -15,6 +15,17 @@ empty and nothing is entered.  The search preferred the lean because it added le
 leaves is the less likely account of a load that the sensor saw resting on furniture.
 Loads on the floor and objects leaning on a wall from the floor (a board, a mattress)
 are left alone.
+
+The floor is no better a prop than the wall (``propped``).  A body resting at one level
+does not also stand on the floor: where the search propped a load that rests on a box
+below it by a part of the load reaching down to the floor through space the sensor never
+saw (the part seen nowhere lower than ``rest_gap`` under the top it rests on: a lamp's
+shade, seen above a night stand, stretched down behind the stand), the column is the
+cheaper account in added volume only.  The supporter's upright face that the part's
+seen footprint reaches past is pushed out under it (as far as that, short of any box in
+the way, and ``min_push`` at least), and the part is cut back to where it was seen (no lower than the supporter's top), in one edit
+that the gate keeps only where nothing is entered, no view saw the added space empty and
+every box still stands.  A part seen down near the floor (a leg) is never such a column.
 """
 
 from __future__ import annotations
@@ -23,7 +34,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import as_seen, fixed_components, horizontal_axes, is_upright, pushed
+from ..boxops import (
+    as_seen,
+    entered,
+    extent_along,
+    fixed_components,
+    horizontal_axes,
+    is_upright,
+    overlap_along,
+    pushed,
+    up_axis,
+    z_range,
+)
 from ..errors import InputError
 from ..stability import load_carrying
 from .base import Edit, Prior, principle_of
@@ -37,17 +59,22 @@ class Params:
     min_push: float = 0.01
     #: A contact whose normal is within this angle (degrees) of vertical carries from below.
     below_deg: float = 30.0
+    #: A part of a load seen nowhere lower than this under the top the load rests on
+    #: reaches the floor only through unseen space (metres; ``propped``).
+    rest_gap: float = 0.04
 
 
 def _leaning(arr, ctx, p: Params):
     """(body members, wall id, supporter ids) of each rigid body that carries load at a
-    wall while it rests on a box, in a stable order."""
+    wall while it rests on a box, in a stable order; and (body members, column members,
+    supporter ids) of each that carries load at the floor through parts seen nowhere
+    near it (``propped``)."""
     try:
         cs, res, carries = load_carrying(arr, mu=ctx.mu, threshold=ctx.threshold)
     except InputError:
-        return []
+        return [], []
     if not res.stable:
-        return []
+        return [], []
     ids = set(arr.ids)
     body = fixed_components(list(arr.ids), arr.contacts)
     members: dict[int, list[str]] = {}
@@ -55,10 +82,14 @@ def _leaning(arr, ctx, p: Params):
         members.setdefault(k, []).append(m)
     cos_below = np.cos(np.radians(p.below_deg))
     at_wall: dict[int, set[str]] = {}
+    at_floor: dict[int, set[str]] = {}
     below: dict[int, set[str]] = {}
+    glued = {c.key for c in arr.contacts if c.type == "fixed"}
     for i, (a, b) in enumerate(cs.pairs):
         if b.startswith("wall:") and a in ids and carries[i]:
             at_wall.setdefault(body[a], set()).add(b)
+        if b == "ground" and a in ids and carries[i] and (a, b) not in glued:
+            at_floor.setdefault(body[a], set()).add(a)
         if a in ids and b in ids and body[a] != body[b]:
             n = cs.normal[i]  # from b into a
             if abs(float(n[2])) >= cos_below:
@@ -69,7 +100,17 @@ def _leaning(arr, ctx, p: Params):
         if k in below:
             for w in sorted(at_wall[k]):
                 out.append((sorted(members[k]), w, sorted(below[k])))
-    return out
+    propped = []
+    for k in sorted(at_floor):
+        if k not in below:
+            continue
+        sups = sorted(below[k])
+        level = min(z_range(arr.cuboids[arr.index[s]])[1] for s in sups)
+        cols = sorted(m for m in at_floor[k]
+                      if z_range(as_seen(arr.cuboids[arr.index[m]]))[0] >= level - p.rest_gap)
+        if cols and len(cols) == len(at_floor[k]):
+            propped.append((sorted(members[k]), cols, sups))
+    return out, propped
 
 
 def _push(arr, load_ids, wall, sup, p: Params):
@@ -104,37 +145,97 @@ def _push(arr, load_ids, wall, sup, p: Params):
     return pushed(sup, ax, side, want)
 
 
+def _under(arr, cols, sup, p: Params):
+    """The supporter ``sup`` pushed out under the column parts ``cols`` as the sensor saw
+    them, and each column cut back to its seen bottom (no lower than ``sup``'s top); None
+    when no upright face of ``sup`` has them past it by ``p.min_push`` and beside it."""
+    if not is_upright(sup):
+        return None
+    seen = [as_seen(arr.cuboids[arr.index[m]]) for m in cols]
+    best = None
+    hs = horizontal_axes(sup)
+    for ax in hs:
+        across = sup.rotation[:, hs[1] if ax == hs[0] else hs[0]]
+        beside = all(overlap_along(c, sup, across) > 0 for c in seen)
+        for side in (0, 1):
+            u = sup.rotation[:, ax] * (1.0 if side else -1.0)
+            face = float(sup.center @ u) + float(sup.size[ax]) / 2
+            want = max(extent_along(c, u)[1] for c in seen) - face
+            if want >= p.min_push and beside and (best is None or want > best[2]):
+                best = (ax, side, want)
+    if best is None:
+        return None
+    ax, side, want = best
+    skip = [arr.index[sup.id], *(arr.index[m] for m in cols)]
+    before = set(entered(arr, sup, skip).tolist())
+    if not set(entered(arr, pushed(sup, ax, side, want), skip).tolist()) <= before:
+        lo, hi = 0.0, want  # the longest push that enters nothing new (a bisection)
+        for _ in range(12):
+            mid = (lo + hi) / 2
+            if set(entered(arr, pushed(sup, ax, side, mid), skip).tolist()) <= before:
+                lo = mid
+            else:
+                hi = mid
+        want = lo
+    if want < p.min_push:
+        return None
+    top = z_range(sup)[1]
+    cut = []
+    for m in cols:
+        c = arr.cuboids[arr.index[m]]
+        bottom, head = z_range(c)
+        new_bottom = max(z_range(as_seen(c))[0], top)
+        if new_bottom >= head:
+            return None
+        up = up_axis(c)
+        down = 0 if c.rotation[2, up] > 0 else 1  # the face looking down
+        cut.append(pushed(c, up, down, -(new_bottom - bottom)))
+    return (pushed(sup, ax, side, want), *cut)
+
+
+def _proposals(final, walls, leaning, propped, tried, p: Params):
+    """The next edit to propose (boxes, reason) from the bodies found, or None."""
+    for load_ids, cols, sups in propped:
+        for s in sups:
+            key = (*load_ids, s, "ground")
+            if key in tried or s in load_ids:
+                continue
+            tried.add(key)
+            old = final.cuboids[final.index[s]]
+            boxes = _under(final, cols, old, p)
+            if boxes is not None:
+                grow = float(np.max(boxes[0].size - old.size))
+                return boxes, (f"{', '.join(load_ids)} propped on the floor by "
+                               f"{', '.join(cols)}, seen only above {s}: {s} pushed "
+                               f"{1000 * grow:.0f} mm under it, the column cut to what was seen")
+    for load_ids, w, sups in leaning:
+        for s in sups:
+            key = (*load_ids, s, w)
+            if key in tried or s in load_ids:
+                continue
+            tried.add(key)
+            old = final.cuboids[final.index[s]]
+            new = _push(final, load_ids, walls[w], old, p)
+            if new is not None:
+                grow = float(np.max(new.size - old.size))
+                return (new,), (f"{', '.join(load_ids)} leant on {w} while resting on {s}: "
+                                f"{s} pushed {1000 * grow:.0f} mm under it towards {w}")
+    return None
+
+
 def apply(arr, evidence, p: Params, ctx):
     final = arr
     walls = {s.id: s for s in arr.supports if s.id.startswith("wall:")}
-    if not walls:
-        return
     tried: set[tuple[str, ...]] = set()
-    leaning = _leaning(final, ctx, p)  # again only when an edit changes the arrangement
+    leaning, propped = _leaning(final, ctx, p)  # again only when an edit is accepted
     while True:
-        proposal = None
-        for load_ids, w, sups in leaning:
-            for s in sups:
-                key = (*load_ids, s, w)
-                if key in tried or s in load_ids:
-                    continue
-                tried.add(key)
-                new = _push(final, load_ids, walls[w], final.cuboids[final.index[s]], p)
-                if new is not None:
-                    proposal = (load_ids, w, s, new)
-                    break
-            if proposal is not None:
-                break
+        proposal = _proposals(final, walls, leaning, propped, tried, p)
         if proposal is None:
             return
-        load_ids, w, s, new = proposal
-        old = final.cuboids[final.index[s]]
-        grow = float(np.max(new.size - old.size))
-        v = yield Edit((new,), f"{', '.join(load_ids)} leant on {w} while resting on {s}: "
-                               f"{s} pushed {1000 * grow:.0f} mm under it towards {w}")
+        v = yield Edit(*proposal)
         if v.ok:
             final = v.arrangement
-            leaning = _leaning(final, ctx, p)
+            leaning, propped = _leaning(final, ctx, p)
 
 
 PRIOR = Prior("from_below", "settle", Params(), apply, principle_of(__doc__))

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pipeline.contacts import find_contacts
-from pipeline.model import Arrangement, ObservedBox, Support, box, ground
+from pipeline.contacts import find_contacts, pair_tolerance
+from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
 from pipeline.stability import check_stability
 from tests.pipeline.priors_util import accepted, run
 
@@ -75,3 +75,71 @@ def test_a_box_in_the_way_behind_the_stand_stops_the_push():
     assert [e.accepted for e in report.edits] == [False]
     assert report.edits[0].why_not == "crate into stand by 100.0 mm"
     assert out.cuboids == arr.cuboids
+
+
+# --- propped: a load resting on furniture is not also stood on the floor by a column ---
+
+def _propped(seen_bottom: float, stand_y: float = 0.25) -> Arrangement:
+    """A night stand (y -0.05..``stand_y``, top 0.7 m) carrying a lamp's base (y 0.1..0.25,
+    z 0.7..1.0), to which the lamp's shade (y 0.25..0.35) is fixed; the search stood the
+    shade on the floor (z 0..1.2) though the sensor saw it only from ``seen_bottom`` up."""
+    stand = box("stand", (0.0, (stand_y - 0.05) / 2, 0.35), (0.5, stand_y + 0.05, 0.7))
+    base = box("base", (0.0, 0.175, 0.85), (0.2, 0.15, 0.3))
+    shade = box("shade", (0.0, 0.3, 0.6), (0.2, 0.1, 1.2))
+    shade = shade.with_(observed=ObservedBox((0.0, 0.3, (seen_bottom + 1.2) / 2),
+                                             (0.2, 0.1, 1.2 - seen_bottom)))
+    return Arrangement(cuboids=(stand, base, shade), supports=(ground(),),
+                       contacts=(Contact("base", "shade", "fixed"),))
+
+
+def _floor_load(arr: Arrangement, who: str) -> float:
+    """The ``who``-floor contact's load over the largest load (0 when they do not touch)."""
+    cs = find_contacts(arr.with_(stability=None))
+    res = check_stability(arr, mu=0.7, contacts=cs)
+    assert res.stable
+    k = cs.lookup().get(("ground", who))
+    return 0.0 if k is None else float(res.contact_load[k] / res.contact_load.max())
+
+
+def test_a_lamp_propped_on_the_floor_by_its_unseen_shade_rests_on_the_stand():
+    arr = _propped(seen_bottom=0.9)
+    assert _floor_load(arr, "shade") > 0.01  # before: the column carries the lamp
+
+    out, report = run("from_below", arr, mu=0.7)
+
+    assert [sorted(e.boxes) for e in accepted(report, "from_below")] == [["shade", "stand"]]
+    stand = out.cuboids[out.index["stand"]]
+    y = stand.corners()[:, 1]
+    # pushed back under the shade as far as it was seen (y 0.35), nothing else changed
+    np.testing.assert_allclose([y.min(), y.max()], [-0.05, 0.35], atol=1e-9)
+    np.testing.assert_allclose(stand.size[[0, 2]], [0.5, 0.7], atol=1e-12)
+    shade = out.cuboids[out.index["shade"]]
+    z = shade.corners()[:, 2]
+    np.testing.assert_allclose([z.min(), z.max()], [0.9, 1.2], atol=1e-9)  # as seen
+    assert _floor_load(out, "shade") == 0.0
+    # the lamp stands on the stand alone, with gravity tilted by the gate's margin
+    assert check_stability(out.with_(stability=None), mu=0.7, tilt_deg=2.0).stable
+
+
+def test_a_column_seen_down_near_the_floor_is_a_leg_and_stays():
+    # seen from 0.5 m up, 0.2 m under the stand's top (more than rest_gap, 0.04 m): the
+    # sensor saw the part reach below the level the lamp rests at
+    arr = _propped(seen_bottom=0.5)
+    out, report = run("from_below", arr, mu=0.7)
+    assert not report.edits
+    assert out.cuboids == arr.cuboids
+
+
+def test_a_push_stops_short_of_a_box_in_the_way():
+    # a crate beside the shade, behind the stand, leaves room for 4 cm of push (y up to
+    # 0.29): the lamp's centre of mass (y 0.225) over its base on the stand needs no more
+    arr = _propped(seen_bottom=0.9)
+    crate = box("crate", (0.25, 0.34, 0.3), (0.2, 0.1, 0.6))  # x 0.15..0.35, y 0.29..0.39
+    arr = arr.with_(cuboids=arr.cuboids + (crate,))
+    out, report = run("from_below", arr, mu=0.7)
+    assert [e.accepted for e in report.edits] == [True]
+    y = out.cuboids[out.index["stand"]].corners()[:, 1]
+    tol = pair_tolerance(arr.cuboids[0].size, crate.size)  # how far a touch may reach in
+    assert 0.29 - 1e-3 <= y.max() <= 0.29 + tol + 1e-3
+    assert out.cuboids[out.index["crate"]] == crate
+    assert _floor_load(out, "shade") == 0.0
