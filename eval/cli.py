@@ -70,6 +70,29 @@ def _top_parser() -> argparse.ArgumentParser:
     )
 
 
+def _dash_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with each option of one value followed by a value that starts with a dash
+    joined to it (``--up -y`` -> ``--up=-y``): argparse takes ``-y`` or ``-0.1,-1,0`` for
+    an option and says the option expected one argument.  A token that starts with two
+    dashes or is one of the parser's own options (``--out --json``, ``--out -h``: the
+    value forgotten) is left to argparse."""
+    one = {s for a in parser._actions if isinstance(a, argparse._StoreAction) and a.nargs is None
+           for s in a.option_strings}
+    known = set(parser._option_string_actions)
+    out: list[str] = []
+    k = 0
+    while k < len(argv):
+        t = argv[k]
+        if (t in one and k + 1 < len(argv) and argv[k + 1].startswith("-")
+                and not argv[k + 1].startswith("--") and argv[k + 1] not in known):
+            out.append(f"{t}={argv[k + 1]}")
+            k += 2
+            continue
+        out.append(t)
+        k += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     top = _top_parser()
@@ -97,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         epilog=f"example:\n  {example}" + (("\n\n" + module.EPILOG) if hasattr(module, "EPILOG") else ""),
     )
     module.add_arguments(parser)
-    args = parser.parse_args(argv[1:])
+    args = parser.parse_args(_dash_values(parser, argv[1:]))
     from pipeline.errors import InputError
 
     try:
