@@ -111,6 +111,25 @@ def write_pose(T_world_cam: np.ndarray, path: str | os.PathLike) -> None:
     atomic.write_text(path, json.dumps(np.asarray(T_world_cam, float).tolist(), indent=1) + "\n")
 
 
+def check_same_frame(meta: dict, intr: Intrinsics, where: str, result: str = "RESULT") -> None:
+    """Refuse (:class:`InputError`) a frame ``where`` whose intrinsics ``intr`` are not
+    those a result recorded in ``meta["intrinsics"]`` (size and fx, fy, cx, cy): the
+    result was made from another frame, and its camera pose would put this frame's pixels
+    elsewhere.  A result without recorded intrinsics passes."""
+    mi = meta.get("intrinsics")
+    if not isinstance(mi, dict):
+        return
+    if (mi.get("width"), mi.get("height")) != (intr.width, intr.height):
+        raise InputError(f"{result}: it was made from a {mi.get('width')}x{mi.get('height')} "
+                         f"frame but {where} is {intr.width}x{intr.height}; give the scan the "
+                         "result came from")
+    for key in ("fx", "fy", "cx", "cy"):
+        have, want = getattr(intr, key), mi.get(key)
+        if isinstance(want, (int, float)) and not np.isclose(have, want, rtol=1e-6, atol=1e-6):
+            raise InputError(f"{result}: it was made from a frame with {key} {want:g} but "
+                             f"{where} has {key} {have:g}; give the scan the result came from")
+
+
 def project(points_cam: np.ndarray, intr: Intrinsics) -> tuple[np.ndarray, np.ndarray]:
     """Project camera-frame points.
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pipeline.camera import Intrinsics
+from pipeline.camera import Intrinsics, check_same_frame
 from pipeline.errors import InputError
 from pipeline.model import Arrangement
 
@@ -61,18 +61,7 @@ def view_of(scan, arr: Arrangement, where: str = "SCAN") -> View:
     H, W = scan.depth.shape
     if scan.image.shape[:2] != (H, W) or (intr.width, intr.height) != (W, H):
         raise InputError(f"{where}: colour, depth and intrinsics disagree in size")
-    mi = arr.meta.get("intrinsics")
-    if isinstance(mi, dict) and (mi.get("width"), mi.get("height")) != (W, H):
-        raise InputError(f"RESULT: it was made from a {mi.get('width')}x{mi.get('height')} "
-                         f"frame but {where} is {W}x{H}; give the scan the result came from")
-    if isinstance(mi, dict):
-        for key in ("fx", "fy", "cx", "cy"):
-            have, want = getattr(intr, key), mi.get(key)
-            if isinstance(want, (int, float)) and not np.isclose(have, want, rtol=1e-6,
-                                                                 atol=1e-6):
-                raise InputError(f"RESULT: it was made from a frame with {key} {want:g} but "
-                                 f"{where} has {key} {have:g}; give the scan the result came "
-                                 "from")
+    check_same_frame(arr.meta, intr, where)
     s = float(arr.meta.get("input_scale", 1.0))
     depth = np.where(np.isfinite(scan.depth) & (scan.depth > 0), scan.depth * s, 0.0)
     return View(np.ascontiguousarray(scan.image[:, :, :3]).astype(np.uint8), depth, intr, T)

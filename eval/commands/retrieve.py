@@ -89,7 +89,7 @@ def scan_world(scan_path: Path, arr):  # noqa: ANN001, ANN201
     """(scan, world points) of the scan a result was made from, in the result's world."""
     import numpy as np
 
-    from pipeline.camera import transform
+    from pipeline.camera import check_same_frame, transform
     from pipeline.errors import InputError
     from pipeline.run import load
     from pipeline.units import to_metres
@@ -98,6 +98,8 @@ def scan_world(scan_path: Path, arr):  # noqa: ANN001, ANN201
         raise InputError("--scan: the result has no meta.camera_pose to bring the scan into "
                          "its world")
     scan = load(scan_path)
+    if scan.intrinsics is not None:  # a frame: the one the result was made from
+        check_same_frame(arr.meta, scan.intrinsics, f"--scan {scan_path}")
     scale = arr.meta.get("input_scale")
     scan, _, _ = to_metres(scan, float(scale) if isinstance(scale, (int, float)) else None)
     T = np.asarray(arr.meta["camera_pose"], float)

@@ -159,3 +159,25 @@ def test_synth_run_retrieve_with_scan(models: Path, tmp_path: Path) -> None:
 def test_suite_quick(tmp_path: Path) -> None:
     assert main(["eval", "retrieval", "--out", str(tmp_path / "s"), "--quick"]) == 0
     assert (tmp_path / "s" / "retrieval.md").is_file()
+
+
+def test_a_scan_of_another_camera_is_refused(models: Path, tmp_path: Path, capsys) -> None:
+    # --scan must be the frame the result came from: a frame whose focal length is not
+    # the one the result recorded would be put into the result's world at the wrong place
+    scene, res = tmp_path / "scene", tmp_path / "res"
+    assert main(["synth", "stack", "--out", str(scene), "--seed", "3"]) == 0
+    assert main(["run", str(scene), "--out", str(res), "--stage", "initial"]) == 0
+    capsys.readouterr()
+    data = json.loads((res / "arrangement.json").read_text())
+    fx = data["meta"]["intrinsics"]["fx"]
+    data["meta"]["intrinsics"]["fx"] = fx + 5.0
+    (res / "arrangement.json").write_text(json.dumps(data))
+    assert main(["retrieve", str(res), "--models", str(models), "--scan", str(scene),
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert f"made from a frame with fx {fx + 5.0:g} but --scan {scene} has fx {fx:g}" in err
+    assert len(err.strip().splitlines()) == 1 and not (tmp_path / "o").exists()
+    data["meta"]["intrinsics"]["fx"] = fx  # the frame it came from passes
+    (res / "arrangement.json").write_text(json.dumps(data))
+    assert main(["retrieve", str(res), "--models", str(models), "--scan", str(scene),
+                 "--out", str(tmp_path / "o"), "--no-icp"]) == 0
