@@ -4,7 +4,7 @@ Every case must end with its exit code and exactly one line on stderr holding th
 case's needle: no traceback, no warning, no hang (each case has 120 s), and nothing in
 its scratch folder changed: every input byte-identical, no output folder, lock, temporary
 folder or ``command.json`` left behind.  Cases run in this process through
-``eval.cli.main`` (the subprocess start-up of 86 commands would cost a minute); stdout
+``eval.cli.main`` (the subprocess start-up of 88 commands would cost a minute); stdout
 and stderr are captured at the file-descriptor level, so C libraries printing there
 are caught too.  The peak memory of the whole replay must stay under 4 GB.
 """
