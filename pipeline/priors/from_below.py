@@ -23,9 +23,10 @@ saw (the part seen nowhere lower than ``rest_gap`` under the top it rests on: a 
 shade, seen above a night stand, stretched down behind the stand), the column is the
 cheaper account in added volume only.  The supporter's upright face that the part's
 seen footprint reaches past is pushed out under it (as far as that, short of any box in
-the way, and ``min_push`` at least), and the part is cut back to where it was seen (no lower than the supporter's top), in one edit
-that the gate keeps only where nothing is entered, no view saw the added space empty and
-every box still stands.  A part seen down near the floor (a leg) is never such a column.
+the way, and ``min_push`` at least), and the part is cut back to where it was seen (no
+lower than the supporter's top), in one edit that the gate keeps only where nothing is
+entered, no view saw the added space empty and every box still stands.  A part seen
+down near the floor (a leg), or glued to it, is never such a column.
 """
 
 from __future__ import annotations
@@ -88,7 +89,7 @@ def _leaning(arr, ctx, p: Params):
     for i, (a, b) in enumerate(cs.pairs):
         if b.startswith("wall:") and a in ids and carries[i]:
             at_wall.setdefault(body[a], set()).add(b)
-        if b == "ground" and a in ids and carries[i] and (a, b) not in glued:
+        if b == "ground" and a in ids and carries[i] and tuple(sorted((a, b))) not in glued:
             at_floor.setdefault(body[a], set()).add(a)
         if a in ids and b in ids and body[a] != body[b]:
             n = cs.normal[i]  # from b into a

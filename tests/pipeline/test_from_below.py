@@ -130,6 +130,15 @@ def test_a_column_seen_down_near_the_floor_is_a_leg_and_stays():
     assert out.cuboids == arr.cuboids
 
 
+def test_a_column_glued_to_the_floor_is_left_alone():
+    # the search glued it there (a joint it needed, or the user's): not an unseen prop
+    arr = _propped(seen_bottom=0.9)
+    arr = arr.with_(contacts=arr.contacts + (Contact("shade", "ground", "fixed"),))
+    out, report = run("from_below", arr, mu=0.7)
+    assert not report.edits
+    assert out.cuboids == arr.cuboids
+
+
 def test_a_push_stops_short_of_a_box_in_the_way():
     # a crate beside the shade, behind the stand, leaves room for 4 cm of push (y up to
     # 0.29): the lamp's centre of mass (y 0.225) over its base on the stand needs no more
