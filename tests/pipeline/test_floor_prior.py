@@ -175,18 +175,13 @@ def test_cli_floor_out_of_frame(tmp_path, capsys, no_floor):
     assert np.asarray(arr.meta["camera_pose"])[2, 3] == pytest.approx(1.4, abs=1e-9)
     assert len(arr.cuboids) == 1  # the cabinet
     # as a user types it: a value starting with a dash is the option's value, not an option
-    code, err = _run(capsys, bare, "--out", tmp_path / "o2b", "--up", "-y",
-                     "--floor-height", "-1.4")
-    assert code == 0, err
-    same = read_arrangement(tmp_path / "o2b" / "arrangement.json")
-    assert [(c.center.tolist(), c.size.tolist()) for c in same.cuboids] == [
-        (c.center.tolist(), c.size.tolist()) for c in arr.cuboids]
-    code, err = _run(capsys, bare, "--out", tmp_path / "o2c", "--up", "-0.0,-1,0.0",
-                     "--floor-height", "-1.4")
-    assert code == 0, err
-    same = read_arrangement(tmp_path / "o2c" / "arrangement.json")
-    assert [(c.center.tolist(), c.size.tolist()) for c in same.cuboids] == [
-        (c.center.tolist(), c.size.tolist()) for c in arr.cuboids]
+    for name, up in (("o2b", "-y"), ("o2c", "-0.0,-1,0.0")):
+        code, err = _run(capsys, bare, "--out", tmp_path / name, "--up", up,
+                         "--floor-height", "-1.4")
+        assert code == 0, err
+        same = read_arrangement(tmp_path / name / "arrangement.json")
+        assert [(c.center.tolist(), c.size.tolist()) for c in same.cuboids] == [
+            (c.center.tolist(), c.size.tolist()) for c in arr.cuboids]
     with pytest.raises(SystemExit) as stop:  # a forgotten value is still argparse's error
         _run(capsys, bare, "--up", "--out", tmp_path / "o2d")
     assert stop.value.code == 2

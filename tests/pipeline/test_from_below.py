@@ -4,6 +4,7 @@ carried by the furniture's hidden side instead (pipeline/priors/from_below.py)."
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pipeline.contacts import find_contacts, pair_tolerance
 from pipeline.model import Arrangement, Contact, ObservedBox, Support, box, ground
@@ -121,19 +122,17 @@ def test_a_lamp_propped_on_the_floor_by_its_unseen_shade_rests_on_the_stand():
     assert check_stability(out.with_(stability=None), mu=0.7, tilt_deg=2.0).stable
 
 
-def test_a_column_seen_down_near_the_floor_is_a_leg_and_stays():
+@pytest.mark.parametrize("seen_bottom, glued", [
     # seen from 0.5 m up, 0.2 m under the stand's top (more than rest_gap, 0.04 m): the
-    # sensor saw the part reach below the level the lamp rests at
-    arr = _propped(seen_bottom=0.5)
-    out, report = run("from_below", arr, mu=0.7)
-    assert not report.edits
-    assert out.cuboids == arr.cuboids
-
-
-def test_a_column_glued_to_the_floor_is_left_alone():
-    # the search glued it there (a joint it needed, or the user's): not an unseen prop
-    arr = _propped(seen_bottom=0.9)
-    arr = arr.with_(contacts=arr.contacts + (Contact("shade", "ground", "fixed"),))
+    # sensor saw the part reach below the level the lamp rests at; it is a leg
+    (0.5, False),
+    # glued to the floor (a joint the search needed, or the user's): not an unseen prop
+    (0.9, True),
+])
+def test_a_leg_or_a_column_glued_to_the_floor_stays(seen_bottom, glued):
+    arr = _propped(seen_bottom=seen_bottom)
+    if glued:
+        arr = arr.with_(contacts=arr.contacts + (Contact("shade", "ground", "fixed"),))
     out, report = run("from_below", arr, mu=0.7)
     assert not report.edits
     assert out.cuboids == arr.cuboids
