@@ -51,6 +51,14 @@ def _check_intrinsics(text: str | None) -> None:
                          "fx and fy > 0) or a .json file")
 
 
+def check_frame_flags(args: argparse.Namespace) -> None:
+    """The flags that read a frame (``--intrinsics``, ``--depth-scale``), for every command
+    that takes them (``run``, ``edit``)."""
+    _check_intrinsics(getattr(args, "intrinsics", None))
+    _finite(getattr(args, "depth_scale", None), "--depth-scale", 0.0, 1e9,
+            "must be a positive number of raw units per metre", lo_open=True)
+
+
 def validate_args(args: argparse.Namespace) -> None:
     """Every option of ``unseen run`` checked before any work (one line, exit 2)."""
     from pipeline.constants import MU_RANGE
@@ -59,7 +67,7 @@ def validate_args(args: argparse.Namespace) -> None:
     if not str(args.input).strip():
         raise InputError("INPUT: empty path; give a scene folder, an RGB-D folder or a cloud")
     check_seed(args.seed)
-    _check_intrinsics(getattr(args, "intrinsics", None))
+    check_frame_flags(args)
     _finite(getattr(args, "budget", None), "--budget", *BUDGET_RANGE,
             "must be a positive number of seconds up to a day", lo_open=True)
     _finite(getattr(args, "mu", None), "--mu", *MU_RANGE,
@@ -69,8 +77,6 @@ def validate_args(args: argparse.Namespace) -> None:
             f"{CELL_RANGE[1]:g}] (default 0.005)")
     _finite(args.max_depth, "--max-depth", 0.0, 1e4,
             "must be a positive distance in metres", lo_open=True)
-    _finite(args.depth_scale, "--depth-scale", 0.0, 1e9,
-            "must be a positive number of raw units per metre", lo_open=True)
     _finite(getattr(args, "scale", None), "--scale", 1e-6, 1e6,
             "must be metres per input unit in [1e-06, 1e+06] (0.001 for mm)")
     check_out(args.out, command="run")

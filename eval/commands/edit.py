@@ -179,6 +179,7 @@ def report_markdown(rec: dict, command: str) -> str:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from eval.run_checks import check_frame_flags
     from pipeline import atomic
     from pipeline.arrangement_io import read_arrangement, write_arrangement
     from pipeline.errors import InputError
@@ -194,9 +195,7 @@ def run(args: argparse.Namespace) -> int:
     ops = operations(args)
     if not (math.isfinite(args.margin) and 0 <= args.margin <= 1):
         raise InputError(f"--margin: must be in [0, 1] metres, got {args.margin}")
-    if args.depth_scale is not None and not (math.isfinite(args.depth_scale)
-                                             and args.depth_scale > 0):
-        raise InputError(f"--depth-scale: must be a positive number, got {args.depth_scale}")
+    check_frame_flags(args)
     check_out(args.out, command="edit")
     result_file = _result_file(args.result)
     arr = read_arrangement(result_file)

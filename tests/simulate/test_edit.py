@@ -357,3 +357,20 @@ def test_edits_suite_quick(tmp_path):
     assert res["object"] == "table0" and "box0" in res["carried_ours"]
     s = res["scores"]
     assert s["ours"]["psnr_in"] > s["unedited (baseline)"]["psnr_in"]
+
+
+@pytest.mark.parametrize("flag, value, needle", [
+    ("--depth-scale", "1e300", "--depth-scale: must be a positive number of raw units"),
+    ("--depth-scale", "0", "--depth-scale: must be a positive number of raw units"),
+    ("--intrinsics", "1,2,3", "4 finite numbers"),
+])
+def test_frame_flags_are_checked_as_run_checks_them(scene_and_result, capsys, tmp_path,
+                                                     flag, value, needle):
+    from eval.cli import main
+
+    root = scene_and_result
+    assert main(["edit", str(root / "scene"), str(root / "result"), "--remove", "box0",
+                 "--out", str(tmp_path / "o"), f"{flag}={value}"]) == 2
+    err = capsys.readouterr().err
+    assert needle in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
