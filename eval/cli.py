@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 
 #: name -> (module, one-line help, example)
@@ -49,7 +50,14 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
 
 
 class OneLineParser(argparse.ArgumentParser):
-    """An argument parser whose errors are one line on stderr (exit 2), not usage + error."""
+    """An argument parser whose errors are one line on stderr (exit 2), not usage + error,
+    and that reads a negative number in any float spelling (``-1e-3``, ``-.5``) as a value:
+    argparse's own pattern knows only ``-1`` and ``-1.5`` and takes ``-1e-3`` for an
+    option (``--move box0 0 -1e-3``)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
 
     def error(self, message: str):  # noqa: D401 - argparse's signature
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())} "
