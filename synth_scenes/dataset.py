@@ -60,6 +60,8 @@ MAX_VIEWS = 16
 SCALE_RANGE = (0.25, 4.0)
 MANIFEST = "manifest.jsonl"
 CONFIG_FILE = "dataset.json"
+#: Relative path -> SHA-256 of every file of the BOP export (``bop/``), written with it.
+BOP_MANIFEST = "bop_manifest.json"
 
 
 # ---------------------------------------------------------------------------- config
@@ -653,4 +655,37 @@ def verify_dataset(root: str | os.PathLike) -> tuple[int, list[str], list[str]]:
             for d in sorted((root / split).iterdir()):
                 if d.is_dir() and f"{split}/{d.name}" not in listed:
                     problems.append(f"{split}/{d.name}: a scene folder the manifest does not list")
+    problems += verify_bop(root)
     return len(ds), problems, ds.verify()
+
+
+def write_bop_manifest(root: str | os.PathLike) -> None:
+    """Record the hashes of the BOP export (``root/bop``) in :data:`BOP_MANIFEST`."""
+    from pipeline import atomic
+
+    root = Path(root)
+    atomic.write_text(root / BOP_MANIFEST,
+                      json.dumps(file_hashes(root / "bop"), indent=1, sort_keys=True) + "\n")
+
+
+def verify_bop(root: str | os.PathLike) -> list[str]:
+    """Why the BOP export under ``root`` does not match its recorded hashes (empty when it
+    does, or when there is no export)."""
+    root = Path(root)
+    if not (root / "bop").is_dir():
+        return [f"{BOP_MANIFEST}: lists a BOP export, but bop/ is missing"] if (
+            root / BOP_MANIFEST).is_file() else []
+    try:
+        want = json.loads((root / BOP_MANIFEST).read_text(encoding="utf-8"))
+        if not isinstance(want, dict):
+            raise TypeError
+    except (OSError, ValueError, TypeError):
+        return [f"bop/: no readable {BOP_MANIFEST} to check it against (rerun dataset make "
+                "with --bop)"]
+    have = file_hashes(root / "bop")
+    if set(have) != set(want):
+        gone = sorted(set(want) - set(have))
+        extra = sorted(set(have) - set(want))
+        return [f"bop/: files differ from {BOP_MANIFEST} (missing {gone[:3]}, extra {extra[:3]})"]
+    return [f"bop/{name}: hash differs from {BOP_MANIFEST}"
+            for name in sorted(want) if have[name] != want[name]][:3]

@@ -3,8 +3,9 @@
 ``make`` plans the scenes (:func:`synth_scenes.dataset.plan`), makes each one as a task
 of :func:`eval.runner.run_tasks` (local processes or a Dask cluster), then writes
 ``manifest.jsonl``, the dataset card ``DATASET.md`` with ``stats.png``, and optionally the
-BOP export.  ``verify`` checks every scene's files against the manifest's hashes, and the
-dataset as a whole (:func:`synth_scenes.dataset.verify_dataset`).
+BOP export with its hashes (``bop_manifest.json``).  ``verify`` checks every scene's
+files against the manifest's hashes, the BOP export against its own, and the dataset as a
+whole (:func:`synth_scenes.dataset.verify_dataset`).
 """
 
 from __future__ import annotations
@@ -29,10 +30,11 @@ noise, renderer, views, scale, clutter and number of objects per family) come fr
 A rerun with the same options resumes: scenes already made and unchanged are kept.
 --dask ADDRESS: the workers write the scenes, so --out must be on a disk they all see.
 Layout: DIR/<split>/<family>-<seed>/ (scene directories), DIR/manifest.jsonl,
-DIR/dataset.json, DIR/DATASET.md, DIR/stats.png, DIR/bop/ (--bop), DIR/.run/ (task
-records and timings).
-verify: every scene's files against their hashes in the manifest, the manifest's length
-against dataset.json, and no scene folder the manifest does not list:
+DIR/dataset.json, DIR/DATASET.md, DIR/stats.png, DIR/bop/ and DIR/bop_manifest.json
+(--bop), DIR/.run/ (task records and timings).
+verify: every scene's files against their hashes in the manifest, bop/ against
+bop_manifest.json, the manifest's length against dataset.json, and no scene folder the
+manifest does not list:
   unseen dataset verify data
 Exit 0 done; 1 some scene failed (how many and the first error on stderr; rerun to
 resume) or verify found a mismatch; 2 bad input."""
@@ -182,6 +184,7 @@ def _make(args: argparse.Namespace) -> int:
         from synth_scenes.bop import export_bop
 
         export_bop(out)
+        ds.write_bop_manifest(out)
     _print_summary(out, lines, summary, sys.stdout)
     line = failure_line([summary])
     if line is not None:

@@ -252,6 +252,12 @@ def test_verify_names_a_changed_file(small, tmp_path, capsys):
     (lambda d: (d / "dataset.json").write_text("[]"), "dataset.json: missing, or not the"),
     (lambda d: (d / "train" / "stack-000099").mkdir(),
      "train/stack-000099: a scene folder the manifest does not list"),
+    # the BOP export is checked against the hashes written with it
+    (lambda d: (d / "bop" / "train" / "000000" / "scene_gt.json").write_text("{}"),
+     "bop/train/000000/scene_gt.json: hash differs from bop_manifest.json"),
+    (lambda d: (d / "bop" / "train" / "000000" / "scene_gt.json").unlink(),
+     "bop/: files differ from bop_manifest.json (missing ['train/000000/scene_gt.json']"),
+    (lambda d: (d / "bop_manifest.json").unlink(), "bop/: no readable bop_manifest.json"),
 ])
 def test_verify_judges_the_dataset_as_a_whole(small, tmp_path, capsys, damage, message):
     # a manifest emptied or cut short, a configuration gone, a scene folder it does not
