@@ -282,7 +282,8 @@ gravity in rigid-block statics, MuJoCo and PyBullet.
   `files` (SHA-256 per file).  `unseen dataset verify DIR` checks the files against it.
 - `bop/` (when made with `--bop`): the BOP layout (`scene_camera.json`, `scene_gt.json`,
   `scene_gt_info.json`, `rgb/`, `depth/`, `mask_visib/`); `obj_id` is the cuboid's
-  instance id and its model a centred box of `obj_size_mm` (see `synth_scenes/bop.py`).
+  instance id and its model a centred box of `obj_size_mm` (see `synth_scenes/bop.py`);
+  `bop_manifest.json` holds the SHA-256 of each of its files, which `verify` checks.
 - `stats.png`: the statistics below as bars.
 
 ## Conventions
