@@ -98,6 +98,9 @@ def operations(args: argparse.Namespace) -> list:
         if not (math.isfinite(x) and math.isfinite(y)) or max(abs(x), abs(y)) > 100:
             raise InputError(f"--move {name} {dx} {dy}: DX and DY must be finite metres, at "
                              "most 100")
+        if x == 0 and y == 0:
+            raise InputError(f"--move {name} {dx} {dy}: moves nothing; give a DX or DY other "
+                             "than 0")
         ops.append(Operation("move", name, x, y))
     if not ops:
         raise InputError("nothing to do: give --move OBJ DX DY or --remove OBJ")

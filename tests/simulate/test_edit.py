@@ -290,6 +290,7 @@ def test_command_writes_the_edit(scene_and_result, capsys):
     (["--move", "table0", "0.5", "0"], "table0 would enter crate by 7.5 cm"),
     (["--move", "box0", "1", "0"], "nothing under box0 at its new place"),
     (["--move", "box0", "x", "0"], "DX and DY must be numbers"),
+    (["--move", "box0", "0", "-0.0"], "--move box0 0 -0.0: moves nothing"),
     ([], "nothing to do"),
     (["--remove", "box0", "--fill", "patchmatch"], "invalid choice"),
 ])
