@@ -436,8 +436,9 @@ def write_record(record: Record, path: str | Path) -> None:
     atomic.write_text(path, dumps(record))
 
 
-def read_record(path: str | Path) -> Record:
-    """Read and check an expectation file.
+def read_record(path: str | Path, record_with: str | None = None) -> Record:
+    """Read and check an expectation file (``record_with``: the command that writes one,
+    named where there is none; default ``unseen regress record DIR``).
 
     Raises
     ------
@@ -446,15 +447,15 @@ def read_record(path: str | Path) -> Record:
     """
     path = Path(path)
     if not path.is_file():
-        raise InputError(f"{path}: no expectation file; write one with unseen regress record "
-                         f"{path.parent}")
+        raise InputError(f"{path}: no expectation file; write one with "
+                         f"{record_with or f'unseen regress record {path.parent}'}")
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(f"{path}: not a readable JSON file ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != FORMAT:
         raise InputError(f"{path}: not an expectation file (format must be {FORMAT!r}); "
-                         "write one with unseen regress record")
+                         f"write one with {record_with or 'unseen regress record'}")
     if data.get("version") != VERSION:
         raise InputError(f"{path}: version {data.get('version')!r} is not supported "
                          f"(expected {VERSION}); record again with --update")

@@ -36,6 +36,11 @@ def check_seed(seed: int, flag: str = "--seed") -> None:
         raise InputError(f"{flag}: must be an integer from 0 to {SEED_MAX}, got {seed}")
 
 
+def comma_list(text: str) -> tuple[str, ...]:
+    """The items of a comma list (``--kinds chair, table``), stripped, each once, in order."""
+    return tuple(dict.fromkeys(k.strip() for k in text.split(",") if k.strip()))
+
+
 def _check_intrinsics(text: str | None) -> None:
     """``--intrinsics`` given as numbers: four finite ones, focal lengths positive (a
     .json file is read, and checked, with the scan)."""

@@ -249,6 +249,7 @@ def transform_json(c, config, extra: dict | None = None) -> dict:
 
 def report_markdown(c, record: dict, command: str) -> str:
     icp = c.alignment.get("icp", {})
+    poor = _poor_fit(icp)
     lines = ["# unseen complete", "", f"- command: `{command}`",
              f"- partial object: {c.objects[1]} ({record['points']['partial']} points), "
              f"template object: {c.objects[0]}",
@@ -262,7 +263,7 @@ def report_markdown(c, record: dict, command: str) -> str:
              f"- ICP: fitness {icp.get('fitness_before', 0):.3f} -> {icp.get('fitness', 0):.3f}, "
              f"RMSE {icp.get('rmse_before', 0):.4f} -> {icp.get('rmse', 0):.4f} m"
              f"{'' if icp.get('kept', True) else ' (not kept: it moved away)'}"
-             + (f" **warning: {_poor_fit(icp)}**" if _poor_fit(icp) else ""),
+             + (f" **warning: {poor}**" if poor else ""),
              f"- transfer: {c.transfer}; {record['points']['template']} points carried over, "
              f"{c.carved} dropped where the partial scan saw through them", "",
              "## Matching", "", "Once aligned (the transfer follows it):", "",
@@ -328,8 +329,9 @@ def run(args: argparse.Namespace) -> int:
         print(f"{c.objects[1]}: {len(c.matching.pairs)} parts matched, "
               f"{line['template_points']} points carried over to {line['partial_points']}, "
               f"ICP fitness {icp.get('fitness', 0):.2f} -> {out}")
-    if _poor_fit(icp):
-        print(f"unseen complete: warning: {_poor_fit(icp)}", file=sys.stderr)
+    poor = _poor_fit(icp)
+    if poor:
+        print(f"unseen complete: warning: {poor}", file=sys.stderr)
     return 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from eval.run_checks import check_seed
+from eval.run_checks import check_seed, comma_list
 from pipeline.outdir import out_arg
 
 EPILOG = """writes:
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     kinds = FURNITURE
     check_seed(args.seed)
     if args.kinds is not None:
-        kinds = tuple(dict.fromkeys(k.strip() for k in args.kinds.split(",") if k.strip()))
+        kinds = comma_list(args.kinds)
         bad = [k for k in kinds if k not in KINDS]
         if bad or not kinds:
             raise InputError(f"--kinds: unknown kind {', '.join(bad) or '(none)'}; "

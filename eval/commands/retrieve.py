@@ -7,7 +7,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from eval.run_checks import check_seed
+from eval.run_checks import check_seed, comma_list
 from pipeline.outdir import out_arg
 
 EPILOG = """RESULT is an 'unseen run' output folder (its arrangement.json: the imagined,
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
     check_seed(args.seed)
     kinds = None
     if args.kinds is not None:
-        kinds = tuple(dict.fromkeys(k.strip() for k in args.kinds.split(",") if k.strip()))
+        kinds = comma_list(args.kinds)
         if not kinds:
             raise InputError("--kinds: give at least one kind, e.g. --kinds chair,table")
     if args.min_cuboids < 1:

@@ -120,15 +120,14 @@ def run(args: argparse.Namespace) -> int:
     path = Path(getattr(args, "expected", None) or EXPECTED)
     record = None
     if not update or path.exists():
+        hint = "unseen eval regression --update"
         try:
-            record = regress.read_record(path)
+            record = regress.read_record(path, record_with=hint)
         except InputError as exc:
-            if not update:  # the reader's hint names unseen regress; this suite's is --update
-                why = str(exc).split("; write one with")[0]
-                if why.startswith(f"{path}: "):
-                    why = why[len(f"{path}: "):]
-                raise InputError(f"--expected {path}: {why}; write one with unseen eval "
-                                 "regression --update") from None
+            if not update:
+                why = str(exc)
+                raise InputError(f"--expected {why}" + ("" if f"write one with {hint}" in why
+                                                        else f"; write one with {hint}")) from None
     scans = out / "scans"
     tasks = [Task(name, case_task, {"family": fam, "seed": seed, "folder": str(scans / name),
                                     "options": opts, "engines": [ENGINE]})

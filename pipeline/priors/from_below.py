@@ -65,7 +65,7 @@ class Params:
     rest_gap: float = 0.04
 
 
-def _leaning(arr, ctx, p: Params):
+def _loads(arr, ctx, p: Params):
     """(body members, wall id, supporter ids) of each rigid body that carries load at a
     wall while it rests on a box, in a stable order; and (body members, column members,
     supporter ids) of each that carries load at the floor through parts seen nowhere
@@ -169,14 +169,16 @@ def _under(arr, cols, sup, p: Params):
     ax, side, want = best
     skip = [arr.index[sup.id], *(arr.index[m] for m in cols)]
     before = set(entered(arr, sup, skip).tolist())
-    if not set(entered(arr, pushed(sup, ax, side, want), skip).tolist()) <= before:
+
+    def fits(length: float) -> bool:
+        """Whether the push enters no box it did not already overlap."""
+        return set(entered(arr, pushed(sup, ax, side, length), skip).tolist()) <= before
+
+    if not fits(want):
         lo, hi = 0.0, want  # the longest push that enters nothing new (a bisection)
         for _ in range(12):
             mid = (lo + hi) / 2
-            if set(entered(arr, pushed(sup, ax, side, mid), skip).tolist()) <= before:
-                lo = mid
-            else:
-                hi = mid
+            lo, hi = (mid, hi) if fits(mid) else (lo, mid)
         want = lo
     if want < p.min_push:
         return None
@@ -228,7 +230,7 @@ def apply(arr, evidence, p: Params, ctx):
     final = arr
     walls = {s.id: s for s in arr.supports if s.id.startswith("wall:")}
     tried: set[tuple[str, ...]] = set()
-    leaning, propped = _leaning(final, ctx, p)  # again only when an edit is accepted
+    leaning, propped = _loads(final, ctx, p)  # again only when an edit is accepted
     while True:
         proposal = _proposals(final, walls, leaning, propped, tried, p)
         if proposal is None:
@@ -236,7 +238,7 @@ def apply(arr, evidence, p: Params, ctx):
         v = yield Edit(*proposal)
         if v.ok:
             final = v.arrangement
-            leaning, propped = _leaning(final, ctx, p)
+            leaning, propped = _loads(final, ctx, p)
 
 
 PRIOR = Prior("from_below", "settle", Params(), apply, principle_of(__doc__))
