@@ -74,6 +74,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="held-out pool: scene seeds S .. S+n-1 of every family (--n per "
                            "family for pool, --pool-n for ablation; default 20); required, "
                            "100000 or more, a fresh range for each round of work")
+    pool.add_argument("--compare", type=Path, default=None, metavar="DIR",
+                      help="pool suite: also compare, scene by scene, with an earlier pool of "
+                           "the same seeds (its --out): compare.md with a paired interval of "
+                           "the change in F1 per family")
 
 
 def package_versions() -> dict[str, str | None]:
@@ -113,6 +117,8 @@ def canonical_command(args: argparse.Namespace) -> list[str]:
         cmd += ["--first-seed", str(args.first_seed)]
     if getattr(args, "data", None) is not None:
         cmd += ["--data", str(args.data)]
+    if getattr(args, "compare", None) is not None:
+        cmd += ["--compare", str(args.compare)]
     return cmd
 
 
@@ -161,11 +167,19 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "first_seed", None) is not None and args.suite not in ("pool", "ablation"):
         raise InputError(f"--first-seed: only for the pool and ablation suites, not "
                          f"{args.suite!r}")
+    if getattr(args, "compare", None) is not None and args.suite != "pool":
+        raise InputError(f"--compare: only for the pool suite, not {args.suite!r}")
     if args.suite in ("pool", "ablation") and not args.quick:
         from eval.suites.pool import seed_range
 
         n = (args.n or 1) if args.suite == "pool" else (args.pool_n or 1)
         seed_range(getattr(args, "first_seed", None), n)  # one line before any work
+    if getattr(args, "compare", None) is not None:
+        from eval.suites.pool import DEFAULT_N, FAMILIES, QUICK_FAMILIES, check_compare
+
+        n = args.n if args.n is not None else (1 if args.quick else DEFAULT_N)
+        check_compare(args.compare, args.out, getattr(args, "first_seed", None), n,
+                      QUICK_FAMILIES if args.quick else FAMILIES)
     from pipeline.outdir import check_results_folder
 
     def same_suite(path: Path) -> bool:
@@ -175,7 +189,8 @@ def run(args: argparse.Namespace) -> int:
             return False
 
     check_results_folder(args.out, marker="command.json", what=f"unseen eval {args.suite}",
-                         same=same_suite, inputs=[getattr(args, "data", None)])
+                         same=same_suite,
+                         inputs=[getattr(args, "data", None), getattr(args, "compare", None)])
     if args.dask:
         check_dask(args.dask)
     created = not args.out.exists()

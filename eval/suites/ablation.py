@@ -35,8 +35,6 @@ DEV_N = 4
 FAMILIES = ("stack", "table", "chair", "shelf", "desk", "sofa", "counterweight", "bridge",
             "wall_shelf", "room")
 QUICK_FAMILIES = ("stack", "table")
-#: Paired bootstrap resamples of the held-out pool's scenes.
-BOOTSTRAP = 2000
 COST = {"room": 4.0, "shelf": 2.5}
 
 
@@ -90,25 +88,8 @@ def _mean(recs: list[dict], key: str) -> float:
     return float(np.mean(vals)) if vals else float("nan")
 
 
-def paired_bootstrap(full: list[dict], off: list[dict], rng: np.random.Generator,
-                     n: int = BOOTSTRAP) -> tuple[float, float]:
-    """95 % interval of F1(off) - F1(full) over scenes resampled with replacement
-    (the same scenes for both), in F1 units."""
-    def counts(recs):
-        t = np.array([[int(r["optimized"]["typed"][k]) for k in ("tp", "n_pred", "n_gt")]
-                      for r in recs], float)
-        return t
-    a, b = counts(full), counts(off)
-    idx = rng.integers(0, len(a), size=(n, len(a)))
-    sa, sb = a[idx].sum(axis=1), b[idx].sum(axis=1)
-    fa = 2 * sa[:, 0] / np.maximum(sa[:, 1] + sa[:, 2], 1)
-    fb = 2 * sb[:, 0] / np.maximum(sb[:, 1] + sb[:, 2], 1)
-    lo, hi = np.percentile(fb - fa, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
 def run(args: argparse.Namespace) -> int:
-    from eval.suites._common import plot_bars, run_suite_tasks, write_table
+    from eval.suites._common import paired_bootstrap, plot_bars, run_suite_tasks, write_table
     from pipeline.priors import PRIORS
 
     out = Path(args.out)

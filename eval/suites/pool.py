@@ -18,6 +18,13 @@ Outputs under ``--out``: ``pool.md`` / ``.csv`` (the table), ``pool.json`` (the 
 range and every figure of the table, machine-readable), ``scenes.csv`` (one row per
 scene), ``pool.png`` (F1 and bound per family), ``tasks/`` (one record per scene;
 resumable).  ``--quick``: stack and chair, one scene each.
+
+``--compare DIR`` (the ``--out`` of an earlier pool of the same seeds, run by other code)
+also writes ``compare.md`` / ``.csv`` / ``.json``: per family the typed F1 before and
+after with a paired bootstrap interval of the change, the matched IoU, and the scenes
+that went up or down, so a change is kept or reverted on its effect on these scenes.
+A rerun into a finished ``--out`` only reads its records, so the comparison of two
+finished runs takes seconds.
 """
 
 from __future__ import annotations
@@ -177,7 +184,109 @@ def run(args: argparse.Namespace) -> int:
               ylim=(0, 105))
     stream = getattr(args, "stream", None) or sys.stdout
     stream.write(md)
+    if getattr(args, "compare", None) is not None:
+        stream.write("\n" + compare(out, Path(args.compare), tasks, results))
     return 0
+
+
+COMPARE_COLUMNS = ["family", "scenes compared", "typed F1 before", "typed F1 after",
+                   "change", "change 95% interval", "IoU before", "IoU after", "scenes up",
+                   "scenes down"]
+
+
+def read_pool(folder: Path) -> dict:
+    """The ``pool.json`` record of an earlier pool run in ``folder``.
+
+    Raises
+    ------
+    pipeline.errors.InputError
+        No readable ``pool.json`` there.
+    """
+    from pipeline.errors import InputError
+
+    path = folder / "pool.json"
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+        return {k: record[k] for k in ("first_seed", "last_seed", "families")}
+    except (OSError, ValueError, TypeError, KeyError):
+        raise InputError(f"--compare {folder}: no readable pool.json there; give the --out "
+                         f"of an earlier 'unseen eval pool' run") from None
+
+
+def check_compare(folder: Path, out: Path, first_seed: int, n: int, families) -> None:
+    """``--compare``: an earlier pool of the same seed range and families, not ``--out``
+    itself (one line, before any work)."""
+    from pipeline.errors import InputError
+
+    if folder.resolve() == out.resolve():
+        raise InputError(f"--compare {folder}: is the --out of this run; give the --out of "
+                         f"an earlier run of the same seeds")
+    prev = read_pool(folder)
+    lo, hi = seed_range(first_seed, n)
+    if (prev["first_seed"], prev["last_seed"]) != (lo, hi) or list(prev["families"]) != list(families):
+        raise InputError(f"--compare {folder}: that pool is seeds {prev['first_seed']}-"
+                         f"{prev['last_seed']} of {len(prev['families'])} families, this one "
+                         f"{lo}-{hi} of {len(families)}; compare runs of the same scenes")
+
+
+def compare(out: Path, folder: Path, tasks: list, results: dict) -> str:
+    """This pool's scenes against the same scenes of an earlier run (``folder``): per
+    family and overall, typed F1 before and after with a paired bootstrap interval of the
+    change (the same scenes resampled for both), mean IoU of the matched boxes, and how
+    many scenes went up or down.  Writes ``compare.md`` / ``.csv`` / ``.json``; returns
+    the Markdown."""
+    import numpy as np
+
+    from eval.runner import load_records
+    from eval.suites._common import (
+        BOOTSTRAP_RESAMPLES,
+        BOOTSTRAP_SEED,
+        aggregate_prf,
+        dec,
+        geometry,
+        paired_bootstrap,
+        pct,
+        write_table,
+    )
+    from eval.suites._scenes import f1_of
+    from pipeline import atomic
+
+    before = {i: r["result"] for i, r in load_records(folder).items()
+              if r.get("status") == "ok" and isinstance(r.get("result"), dict)}
+    pairs: dict[str, list[tuple[dict, dict]]] = {}
+    for t in tasks:
+        if t.id in results and t.id in before:
+            pairs.setdefault(t.kwargs["family"], []).append((before[t.id], results[t.id]))
+    pairs["all"] = [p for fam in list(pairs) for p in pairs[fam]]
+    rows, figs = [], {}
+    for fam, ps in pairs.items():
+        if not ps:
+            continue
+        a, b = [p[0] for p in ps], [p[1] for p in ps]
+        fa, fb = aggregate_prf(a)["f1"], aggregate_prf(b)["f1"]
+        lo, hi = paired_bootstrap(a, b, np.random.default_rng(BOOTSTRAP_SEED))
+        up = sum(f1_of(y) > f1_of(x) + 1e-9 for x, y in ps)
+        down = sum(f1_of(y) < f1_of(x) - 1e-9 for x, y in ps)
+        ia, ib = geometry(a)["iou"], geometry(b)["iou"]
+        figs[fam] = {"scenes": len(ps), "f1_before": fa, "f1_after": fb, "change": fb - fa,
+                     "change_lo": lo, "change_hi": hi, "iou_before": ia, "iou_after": ib,
+                     "up": up, "down": down}
+        rows.append([fam, len(ps), pct(fa), pct(fb), f"{100 * (fb - fa):+.1f}",
+                     f"{100 * lo:+.1f} to {100 * hi:+.1f}", dec(ia), dec(ib), up, down])
+    missing = sorted(t.id for t in tasks if t.id in results and t.id not in before)
+    note = (f"Before: the pool in {folder}; after: this run ({out}).  Change: typed F1 after "
+            f"minus before, in points; its 95% interval: paired percentile bootstrap over the "
+            f"scenes ({BOOTSTRAP_RESAMPLES} resamples of the same scenes for both, generator "
+            f"seed {BOOTSTRAP_SEED}).  An interval that holds 0 is no evidence either way.  "
+            f"Scenes up / down: scenes whose typed F1 rose / fell."
+            + (f"  {len(missing)} scenes of this run have no record there and are left "
+               f"out." if missing else ""))
+    md = write_table(out, "compare", COMPARE_COLUMNS, rows,
+                     title=f"Against {folder}", note=note)
+    atomic.write_text(out / "compare.json", json.dumps(_json_safe(
+        {"before": str(folder), "after": str(out), "figures": figs, "left_out": missing}),
+        indent=1) + "\n")
+    return md
 
 
 def _json_safe(obj):  # noqa: ANN001, ANN202

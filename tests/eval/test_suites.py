@@ -298,6 +298,89 @@ def test_pool_quick(tmp_path: Path) -> None:
     assert (tmp_path / "pool.png").stat().st_size > 0
 
 
+def _scene_record(tp: int, n: int, iou: float) -> dict:
+    """A pool scene's result with ``tp`` of ``n`` predicted and ``n`` true contacts right
+    and every one of its 2 boxes matched at ``iou``."""
+    return {"optimized": {"typed": {"tp": tp, "n_pred": n, "n_gt": n}}, "n_gt": 2,
+            "n_matched": 2, "n_seen": 2, "n_matched_seen": 2, "iou_sum": 2 * iou,
+            "side_abs": 0.0, "side_len": 1.0}
+
+
+def test_pool_compare_pairs_the_same_scenes_and_bounds_the_change(tmp_path: Path) -> None:
+    """``--compare``: each scene against its own earlier record.  Every stack scene gains
+    one of 4 contacts (F1 0.75 -> 1.0 in each, so every resample of the paired bootstrap
+    gains exactly 25 points), chairs do not change (an interval of exactly 0), a scene
+    the earlier run lacks is left out and named, and a failed earlier record is not
+    compared."""
+    from eval.suites import pool
+
+    tasks = pool.build_tasks(100_000, 3, families=("stack", "chair"))
+    before, after = tmp_path / "before", tmp_path / "after"
+    (before / "tasks").mkdir(parents=True)
+    after.mkdir()
+    results = {}
+    for t in tasks:
+        fam = t.kwargs["family"]
+        results[t.id] = _scene_record(4 if fam == "stack" else 2, 4, 0.7)
+        if t.id == "chair-100002":
+            continue  # not in the earlier run
+        old = {"id": t.id, "fingerprint": "x", "status": "ok",
+               "result": _scene_record(3 if fam == "stack" else 2, 4, 0.5)}
+        if t.id == "chair-100001":
+            old = {"id": t.id, "fingerprint": "x", "status": "error", "error": "boom"}
+        (before / "tasks" / f"{t.id}.json").write_text(json.dumps(old))
+    md = pool.compare(after, before, tasks, results)
+    rec = json.loads((after / "compare.json").read_text())
+    stack, chair, every = (rec["figures"][k] for k in ("stack", "chair", "all"))
+    assert stack["scenes"] == 3 and (stack["up"], stack["down"]) == (3, 0)
+    assert stack["f1_before"] == pytest.approx(0.75) and stack["f1_after"] == pytest.approx(1.0)
+    assert stack["change_lo"] == pytest.approx(0.25) and stack["change_hi"] == pytest.approx(0.25)
+    assert stack["iou_before"] == pytest.approx(0.5) and stack["iou_after"] == pytest.approx(0.7)
+    assert chair["scenes"] == 1 and chair["change"] == 0.0
+    assert (chair["change_lo"], chair["change_hi"]) == (0.0, 0.0)
+    assert every["scenes"] == 4 and every["f1_before"] == pytest.approx(11 / 16)
+    assert every["change_lo"] <= every["change"] <= every["change_hi"]
+    assert rec["left_out"] == ["chair-100001", "chair-100002"]
+    rows = {r["family"]: r for r in _rows(after / "compare.csv")}
+    assert rows["stack"]["change"] == "+25.0" and rows["stack"]["change 95% interval"] == "+25.0 to +25.0"
+    assert "2 scenes of this run have no record there" in md
+
+
+def test_pool_compare_refuses_another_pool_in_one_line(tmp_path: Path, capsys) -> None:
+    """``--compare`` needs an earlier pool of the same seeds and families: a folder without
+    ``pool.json``, another seed range, the run's own ``--out`` and another suite are one
+    line each, exit 2, before any work."""
+    prev = tmp_path / "prev"
+    prev.mkdir()
+    out = tmp_path / "out"
+
+    def refused(*argv: str) -> str:
+        existed = out.exists()
+        assert main(["eval", *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and out.exists() == existed
+        assert not out.exists() or not any(out.iterdir())  # nothing written
+        return err
+
+    base = ["pool", "--out", str(out), "--quick", "--first-seed", "100007"]
+    assert "no readable pool.json there" in refused(*base, "--compare", str(prev))
+    (prev / "pool.json").write_text(json.dumps(
+        {"first_seed": 100000, "last_seed": 100000, "families": ["stack", "chair"]}))
+    err = refused(*base, "--compare", str(prev))
+    assert "that pool is seeds 100000-100000" in err and "this one 100007-100007" in err
+    assert "only for the pool suite" in refused("table1", "--out", str(out), "--quick",
+                                                "--compare", str(prev))
+    out.mkdir()
+    assert "is the --out of this run" in refused(*base, "--compare", str(out))
+
+
+def test_paired_bootstrap_of_identical_runs_is_zero() -> None:
+    from eval.suites._common import paired_bootstrap
+
+    recs = [_scene_record(k, 5, 0.5) for k in range(6)]
+    assert paired_bootstrap(recs, recs, np.random.default_rng(0)) == (0.0, 0.0)
+
+
 def test_a_scan_the_pipeline_refuses_scores_every_contact_missed(monkeypatch) -> None:
     from eval.suites import _scenes
     from pipeline.errors import InputError
