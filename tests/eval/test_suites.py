@@ -269,6 +269,11 @@ def test_pool_seed_range_errors_exit_2(tmp_path: Path, capsys, argv, msg) -> Non
 
 def test_pool_quick(tmp_path: Path) -> None:
     assert _eval("pool", tmp_path, "--quick", "--first-seed", "100007") == 0
+    # rerun (it resumes from its records) without --compare: a comparison an earlier run
+    # wrote no longer describes the folder and goes
+    (tmp_path / "compare.md").write_text("an earlier run's comparison")
+    assert _eval("pool", tmp_path, "--quick", "--first-seed", "100007") == 0
+    assert not (tmp_path / "compare.md").exists()
     cmd = json.loads((tmp_path / "command.json").read_text())
     assert cmd["command"].endswith("--quick --first-seed 100007") and cmd["first_seed"] == 100007
     rec = json.loads((tmp_path / "pool.json").read_text())
