@@ -74,10 +74,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="held-out pool: scene seeds S .. S+n-1 of every family (--n per "
                            "family for pool, --pool-n for ablation; default 20); required, "
                            "100000 or more, a fresh range for each round of work")
-    pool.add_argument("--compare", type=Path, default=None, metavar="DIR",
-                      help="pool suite: also compare, scene by scene, with an earlier pool of "
-                           "the same seeds (its --out): compare.md with a paired interval of "
-                           "the change in F1 per family")
+    parser.add_argument("--compare", type=Path, default=None, metavar="DIR",
+                        help="pool and real suites: also compare, scene by scene, with an "
+                             "earlier run of the same scenes (its --out): compare.md (pool: a "
+                             "paired interval of the change in F1 per family; real: the scans "
+                             "that changed and the labelled pairs they gained or lost)")
 
 
 def package_versions() -> dict[str, str | None]:
@@ -167,19 +168,25 @@ def run(args: argparse.Namespace) -> int:
     if getattr(args, "first_seed", None) is not None and args.suite not in ("pool", "ablation"):
         raise InputError(f"--first-seed: only for the pool and ablation suites, not "
                          f"{args.suite!r}")
-    if getattr(args, "compare", None) is not None and args.suite != "pool":
-        raise InputError(f"--compare: only for the pool suite, not {args.suite!r}")
+    if getattr(args, "compare", None) is not None and args.suite not in ("pool", "real"):
+        raise InputError(f"--compare: only for the pool and real suites, not {args.suite!r}")
     if args.suite in ("pool", "ablation") and not args.quick:
         from eval.suites.pool import seed_range
 
         n = (args.n or 1) if args.suite == "pool" else (args.pool_n or 1)
         seed_range(getattr(args, "first_seed", None), n)  # one line before any work
-    if getattr(args, "compare", None) is not None:
+    if getattr(args, "compare", None) is not None and args.suite == "pool":
         from eval.suites.pool import DEFAULT_N, FAMILIES, QUICK_FAMILIES, check_compare
 
         n = args.n if args.n is not None else (1 if args.quick else DEFAULT_N)
         check_compare(args.compare, args.out, getattr(args, "first_seed", None), n,
                       QUICK_FAMILIES if args.quick else FAMILIES)
+    elif getattr(args, "compare", None) is not None:
+        from eval.suites.pool import check_not_out
+        from eval.suites.real import read_real
+
+        check_not_out(args.compare, args.out)
+        read_real(args.compare)
     from pipeline.outdir import check_results_folder
 
     def same_suite(path: Path) -> bool:

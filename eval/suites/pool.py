@@ -216,14 +216,21 @@ def read_pool(folder: Path) -> dict:
                          f"of an earlier 'unseen eval pool' run") from None
 
 
+def check_not_out(folder: Path, out: Path) -> None:
+    """``--compare`` is not the ``--out`` of this run (one line)."""
+    from pipeline.errors import InputError
+
+    if folder.resolve() == out.resolve():
+        raise InputError(f"--compare {folder}: is the --out of this run; give the --out of "
+                         f"an earlier run of the same scenes")
+
+
 def check_compare(folder: Path, out: Path, first_seed: int, n: int, families) -> None:
     """``--compare``: an earlier pool of the same seed range and families, not ``--out``
     itself (one line, before any work)."""
     from pipeline.errors import InputError
 
-    if folder.resolve() == out.resolve():
-        raise InputError(f"--compare {folder}: is the --out of this run; give the --out of "
-                         f"an earlier run of the same seeds")
+    check_not_out(folder, out)
     prev = read_pool(folder)
     lo, hi = seed_range(first_seed, n)
     if (prev["first_seed"], prev["last_seed"]) != (lo, hi) or list(prev["families"]) != list(families):

@@ -137,4 +137,95 @@ def run(args: argparse.Namespace) -> int:
     atomic.write_text(out / "real.json", json.dumps(_json_safe(record), indent=1) + "\n")
     stream = getattr(args, "stream", None) or sys.stdout
     stream.write(md)
+    if getattr(args, "compare", None) is not None:
+        stream.write("\n" + compare(out, Path(args.compare), recs))
+    else:  # a comparison an earlier run wrote here no longer describes this one
+        for name in ("compare.md", "compare.csv", "compare.json"):
+            (out / name).unlink(missing_ok=True)
     return 0
+
+
+COMPARE_COLUMNS = ["scan", "group", "support F1 before", "support F1 after", "found",
+                   "glue", "stands (analytic / MuJoCo / PyBullet)", "pairs gained",
+                   "pairs lost"]
+
+
+def read_real(folder: Path) -> dict:
+    """The per-scan records of an earlier ``unseen eval real`` run in ``folder``.
+
+    Raises
+    ------
+    pipeline.errors.InputError
+        No readable ``real.json`` there.
+    """
+    from pipeline.errors import InputError
+
+    try:
+        scans = json.loads((folder / "real.json").read_text(encoding="utf-8"))["scans"]
+        if not isinstance(scans, dict):
+            raise TypeError
+        return scans
+    except (OSError, ValueError, TypeError, KeyError):
+        raise InputError(f"--compare {folder}: no readable real.json there; give the --out "
+                         f"of an earlier 'unseen eval real' run") from None
+
+
+def compare(out: Path, folder: Path, recs: list[dict]) -> str:
+    """These scans against the same scans of an earlier run (``folder``): one row per scan
+    whose score, objects found, glue or standing changed (support F1 before and after, the
+    labelled pairs it now gets right and those it no longer does) and one per group
+    (micro-averaged).  Writes ``compare.md`` / ``.csv`` / ``.json``; returns the Markdown."""
+    from eval.suites._common import pct, write_table
+    from eval.suites.pool import _json_safe
+    from pipeline import atomic
+
+    before = read_real(folder)
+
+    def stands(r: dict) -> str:
+        return " / ".join(str(int(bool(x))) for x in
+                          (r["stable"], *(r["stands_in"][e] for e in ENGINES)))
+
+    rows, changed = [], []
+    pairs = [(before[r["name"]], r) for r in recs if r["name"] in before]
+    for a, b in pairs:
+        key = ("tp", "fp", "fn", "found", "glue", "stable")
+        if all(a[k] == b[k] for k in key) and a["stands_in"] == b["stands_in"]:
+            continue
+        fa, fb = group_figures([a])["f1"], group_figures([b])["f1"]
+        lost = sorted({tuple(p) for p in b["missed_pairs"]} - {tuple(p) for p in a["missed_pairs"]})
+        gained = sorted({tuple(p) for p in a["missed_pairs"]} - {tuple(p) for p in b["missed_pairs"]})
+        wrong = sorted({tuple(p) for p in b["false_pairs"]} - {tuple(p) for p in a["false_pairs"]})
+        fixed = sorted({tuple(p) for p in a["false_pairs"]} - {tuple(p) for p in b["false_pairs"]})
+        cell = lambda ps, sign: ", ".join(f"{sign}{x}-{y}" for x, y in ps)  # noqa: E731
+        rows.append([b["name"], b["group"], pct(fa), pct(fb), f"{a['found']} -> {b['found']}",
+                     f"{a['glue']} -> {b['glue']}", f"{stands(a)} -> {stands(b)}",
+                     "; ".join(x for x in (cell(gained, ""), cell(fixed, "not ")) if x),
+                     "; ".join(x for x in (cell(lost, ""), cell(wrong, "added ")) if x)])
+        changed.append(b["name"])
+    figs = {}
+    for group in ("boxes", "rooms"):
+        ps = [(a, b) for a, b in pairs if b["group"] == group]
+        if ps:
+            fa, fb = (group_figures([p[k] for p in ps]) for k in (0, 1))
+            figs[group] = {"scans": len(ps), "f1_before": fa["f1"], "f1_after": fb["f1"],
+                           "found_before": fa["found"], "found_after": fb["found"],
+                           "glue_before": fa["glue"], "glue_after": fb["glue"]}
+            rows.append([f"**all {group}**", group, pct(fa["f1"]), pct(fb["f1"]),
+                         f"{fa['found']} -> {fb['found']}", f"{fa['glue']} -> {fb['glue']}",
+                         f"{pct(fa['stands_analytic'], 0)} / {pct(fa['stands_mujoco'], 0)} / "
+                         f"{pct(fa['stands_pybullet'], 0)} -> {pct(fb['stands_analytic'], 0)} / "
+                         f"{pct(fb['stands_mujoco'], 0)} / {pct(fb['stands_pybullet'], 0)} %", "",
+                         ""])
+    left = sorted(r["name"] for r in recs if r["name"] not in before)
+    note = (f"Before: the run in {folder}; after: this run ({out}).  One row per scan whose "
+            f"support score, objects found, glue or verdicts changed ({len(changed)} of "
+            f"{len(pairs)}); stands: 1 / 0 in the analytic check, MuJoCo, PyBullet.  Pairs "
+            f"gained: labelled pairs now found, or wrong pairs no longer added ('not'); "
+            f"pairs lost: labelled pairs no longer found, or wrong pairs now added ('added')."
+            + (f"  Not in the earlier run, left out: {', '.join(left)}." if left else ""))
+    md = write_table(out, "compare", COMPARE_COLUMNS, rows, title=f"Against {folder}",
+                     note=note)
+    atomic.write_text(out / "compare.json", json.dumps(_json_safe(
+        {"before": str(folder), "after": str(out), "changed": changed, "groups": figs,
+         "left_out": left}), indent=1) + "\n")
+    return md

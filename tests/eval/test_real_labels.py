@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 
 import numpy as np
@@ -156,3 +157,56 @@ def test_eval_real_without_the_data_says_where_to_point_it(tmp_path, capsys):
                str(tmp_path / "nowhere")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--data" in err[0] and "Traceback" not in err[0]
+
+
+def _real_record(name, group, tp, fp, fn, missed=(), false=(), glue=0, stands=True):
+    """An ``unseen eval real`` scan record with the counts and pairs given."""
+    return {"name": name, "group": group, "objects": 3, "found": 3, "predicted_objects": 3,
+            "matched_objects": 3, "tp": tp, "fp": fp, "fn": fn, "glue": glue,
+            "glue_between_objects": 0, "false_pairs": [list(p) for p in false],
+            "missed_pairs": [list(p) for p in missed], "match": {},
+            "all_contacts": {"tp": tp, "fp": fp, "fn": fn}, "stable": stands,
+            "stands_in": {"mujoco": stands, "pybullet": stands}}
+
+
+def test_eval_real_compare_names_the_scans_and_pairs_that_changed(tmp_path):
+    """``unseen eval real --compare``: a scan whose score did not change has no row; one
+    that found a labelled pair it missed and stopped adding a wrong one shows both, and
+    one that lost a pair shows that; group rows are micro-averaged before and after; a
+    scan the earlier run lacks is left out and named."""
+    from eval.suites import real
+
+    before = {"a": _real_record("a", "boxes", 2, 0, 0),
+              "b": _real_record("b", "boxes", 1, 1, 1, missed=[("box", "floor")],
+                                false=[("box", "wall")]),
+              "c": _real_record("c", "rooms", 2, 0, 0)}
+    (tmp_path / "before").mkdir()
+    (tmp_path / "before" / "real.json").write_text(json.dumps({"scans": before}))
+    after = [_real_record("a", "boxes", 2, 0, 0),
+             _real_record("b", "boxes", 2, 0, 0),
+             _real_record("c", "rooms", 1, 0, 1, missed=[("lamp", "stand")], stands=False),
+             _real_record("d", "rooms", 1, 0, 0)]
+    out = tmp_path / "after"
+    out.mkdir()
+    md = real.compare(out, tmp_path / "before", after)
+    rec = json.loads((out / "compare.json").read_text())
+    assert rec["changed"] == ["b", "c"] and rec["left_out"] == ["d"]
+    rows = {r["scan"]: r for r in csv.DictReader((out / "compare.csv").open())}
+    assert set(rows) == {"b", "c", "**all boxes**", "**all rooms**"}
+    assert (rows["b"]["support F1 before"], rows["b"]["support F1 after"]) == ("50.0", "100.0")
+    assert rows["b"]["pairs gained"] == "box-floor; not box-wall" and rows["b"]["pairs lost"] == ""
+    assert rows["c"]["pairs lost"] == "lamp-stand" and rows["c"]["stands (analytic / MuJoCo / PyBullet)"] == "1 / 1 / 1 -> 0 / 0 / 0"
+    boxes = rec["groups"]["boxes"]
+    assert boxes["f1_before"] == pytest.approx(2 * 3 / (2 * 3 + 1 + 1)) and boxes["f1_after"] == 1.0
+    assert rec["groups"]["rooms"]["scans"] == 1  # d is left out
+    assert "Not in the earlier run, left out: d." in md
+
+
+def test_eval_real_compare_refuses_a_folder_without_real_json(tmp_path, capsys):
+    from eval.cli import main
+
+    (tmp_path / "prev").mkdir()
+    out = tmp_path / "out"
+    assert main(["eval", "real", "--out", str(out), "--compare", str(tmp_path / "prev")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no readable real.json there" in err and "\n" not in err and not out.exists()

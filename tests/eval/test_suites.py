@@ -373,7 +373,7 @@ def test_pool_compare_refuses_another_pool_in_one_line(tmp_path: Path, capsys) -
         {"first_seed": 100000, "last_seed": 100000, "families": ["stack", "chair"]}))
     err = refused(*base, "--compare", str(prev))
     assert "that pool is seeds 100000-100000" in err and "this one 100007-100007" in err
-    assert "only for the pool suite" in refused("table1", "--out", str(out), "--quick",
+    assert "only for the pool and real suites" in refused("table1", "--out", str(out), "--quick",
                                                 "--compare", str(prev))
     out.mkdir()
     assert "is the --out of this run" in refused(*base, "--compare", str(out))
