@@ -164,10 +164,18 @@ def read_real(folder: Path) -> dict:
         scans = json.loads((folder / "real.json").read_text(encoding="utf-8"))["scans"]
         if not isinstance(scans, dict):
             raise TypeError
-        return scans
     except (OSError, ValueError, TypeError, KeyError):
         raise InputError(f"--compare {folder}: no readable real.json there; give the --out "
                          f"of an earlier 'unseen eval real' run") from None
+    need = ("group", "tp", "fp", "fn", "found", "objects", "predicted_objects", "glue",
+            "glue_between_objects", "stable", "stands_in", "missed_pairs", "false_pairs",
+            "all_contacts")
+    for name, rec in scans.items():
+        gone = [k for k in need if not isinstance(rec, dict) or k not in rec]
+        if gone:
+            raise InputError(f"--compare {folder}: real.json's scan {name!r} lacks "
+                             f"{', '.join(gone)}; give the --out of a run of this version")
+    return scans
 
 
 def compare(out: Path, folder: Path, recs: list[dict]) -> str:
@@ -185,6 +193,9 @@ def compare(out: Path, folder: Path, recs: list[dict]) -> str:
         return " / ".join(str(int(bool(x))) for x in
                           (r["stable"], *(r["stands_in"][e] for e in ENGINES)))
 
+    def cell(ps: list, sign: str) -> str:
+        return ", ".join(f"{sign}{x}-{y}" for x, y in ps)
+
     rows, changed = [], []
     pairs = [(before[r["name"]], r) for r in recs if r["name"] in before]
     for a, b in pairs:
@@ -196,7 +207,6 @@ def compare(out: Path, folder: Path, recs: list[dict]) -> str:
         gained = sorted({tuple(p) for p in a["missed_pairs"]} - {tuple(p) for p in b["missed_pairs"]})
         wrong = sorted({tuple(p) for p in b["false_pairs"]} - {tuple(p) for p in a["false_pairs"]})
         fixed = sorted({tuple(p) for p in a["false_pairs"]} - {tuple(p) for p in b["false_pairs"]})
-        cell = lambda ps, sign: ", ".join(f"{sign}{x}-{y}" for x, y in ps)  # noqa: E731
         rows.append([b["name"], b["group"], pct(fa), pct(fb), f"{a['found']} -> {b['found']}",
                      f"{a['glue']} -> {b['glue']}", f"{stands(a)} -> {stands(b)}",
                      "; ".join(x for x in (cell(gained, ""), cell(fixed, "not ")) if x),

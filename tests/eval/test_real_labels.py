@@ -210,3 +210,7 @@ def test_eval_real_compare_refuses_a_folder_without_real_json(tmp_path, capsys):
     assert main(["eval", "real", "--out", str(out), "--compare", str(tmp_path / "prev")]) == 2
     err = capsys.readouterr().err.strip()
     assert "no readable real.json there" in err and "\n" not in err and not out.exists()
+    (tmp_path / "prev" / "real.json").write_text(json.dumps({"scans": {"x": {"group": "boxes"}}}))
+    assert main(["eval", "real", "--out", str(out), "--compare", str(tmp_path / "prev")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "real.json's scan 'x' lacks tp, fp, fn" in err and "\n" not in err
