@@ -298,6 +298,13 @@ def paired_bootstrap(before: Sequence[Mapping], after: Sequence[Mapping], rng,  
     return float(lo), float(hi)
 
 
+def clear_comparison(out: str | Path) -> None:
+    """Remove the ``compare.*`` an earlier run with ``--compare`` wrote into ``out``: it no
+    longer describes a run without it."""
+    for name in ("compare.md", "compare.csv", "compare.json"):
+        (Path(out) / name).unlink(missing_ok=True)
+
+
 def interval_cell(interval: tuple[float, float]) -> str:
     """``91.2-95.4`` (percent) or ``-``."""
     lo, hi = interval

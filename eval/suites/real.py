@@ -139,9 +139,10 @@ def run(args: argparse.Namespace) -> int:
     stream.write(md)
     if getattr(args, "compare", None) is not None:
         stream.write("\n" + compare(out, Path(args.compare), recs))
-    else:  # a comparison an earlier run wrote here no longer describes this one
-        for name in ("compare.md", "compare.csv", "compare.json"):
-            (out / name).unlink(missing_ok=True)
+    else:
+        from eval.suites._common import clear_comparison
+
+        clear_comparison(out)
     return 0
 
 
