@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import csv
 import io
+import json
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -296,6 +297,27 @@ def paired_bootstrap(before: Sequence[Mapping], after: Sequence[Mapping], rng,  
     fb = 2 * sb[:, 0] / np.maximum(sb[:, 1] + sb[:, 2], 1)
     lo, hi = np.percentile(fb - fa, [2.5, 97.5])
     return float(lo), float(hi)
+
+
+def read_earlier(folder: Path, name: str, suite: str, keys: Sequence[str]) -> dict:
+    """The JSON object ``folder/name`` that an earlier ``unseen eval suite`` run wrote,
+    holding ``keys`` (``--compare``).
+
+    Raises
+    ------
+    pipeline.errors.InputError
+        No readable such file there, or one without ``keys``: one line.
+    """
+    from pipeline.errors import InputError
+
+    try:
+        record = json.loads((Path(folder) / name).read_text(encoding="utf-8"))
+        if isinstance(record, dict) and all(k in record for k in keys):
+            return record
+    except (OSError, ValueError):
+        pass
+    raise InputError(f"--compare {folder}: no readable {name} there; give the --out of an "
+                     f"earlier 'unseen eval {suite}' run")
 
 
 def clear_comparison(out: str | Path) -> None:

@@ -199,22 +199,13 @@ COMPARE_COLUMNS = ["family", "scenes compared", "typed F1 before", "typed F1 aft
 
 
 def read_pool(folder: Path) -> dict:
-    """The ``pool.json`` record of an earlier pool run in ``folder``.
+    """The seed range and families of an earlier pool run in ``folder`` (its
+    ``pool.json``; :func:`eval.suites._common.read_earlier`)."""
+    from eval.suites._common import read_earlier
 
-    Raises
-    ------
-    pipeline.errors.InputError
-        No readable ``pool.json`` there.
-    """
-    from pipeline.errors import InputError
-
-    path = folder / "pool.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-        return {k: record[k] for k in ("first_seed", "last_seed", "families")}
-    except (OSError, ValueError, TypeError, KeyError):
-        raise InputError(f"--compare {folder}: no readable pool.json there; give the --out "
-                         f"of an earlier 'unseen eval pool' run") from None
+    keys = ("first_seed", "last_seed", "families")
+    record = read_earlier(folder, "pool.json", "pool", keys)
+    return {k: record[k] for k in keys}
 
 
 def check_not_out(folder: Path, out: Path) -> None:
@@ -277,8 +268,9 @@ def compare(out: Path, folder: Path, tasks: list, results: dict) -> str:
         a, b = [p[0] for p in ps], [p[1] for p in ps]
         fa, fb = aggregate_prf(a)["f1"], aggregate_prf(b)["f1"]
         lo, hi = paired_bootstrap(a, b, np.random.default_rng(BOOTSTRAP_SEED))
-        up = sum(f1_of(y) > f1_of(x) + 1e-9 for x, y in ps)
-        down = sum(f1_of(y) < f1_of(x) - 1e-9 for x, y in ps)
+        per_scene = [(f1_of(x), f1_of(y)) for x, y in ps]
+        up = sum(fy > fx + 1e-9 for fx, fy in per_scene)
+        down = sum(fy < fx - 1e-9 for fx, fy in per_scene)
         ia, ib = geometry(a)["iou"], geometry(b)["iou"]
         figs[fam] = {"scenes": len(ps), "f1_before": fa, "f1_after": fb, "change": fb - fa,
                      "change_lo": lo, "change_hi": hi, "iou_before": ia, "iou_after": ib,

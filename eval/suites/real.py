@@ -152,22 +152,22 @@ COMPARE_COLUMNS = ["scan", "group", "support F1 before", "support F1 after", "fo
 
 
 def read_real(folder: Path) -> dict:
-    """The per-scan records of an earlier ``unseen eval real`` run in ``folder``.
+    """The per-scan records of an earlier ``unseen eval real`` run in ``folder`` (its
+    ``real.json``; :func:`eval.suites._common.read_earlier`).
 
     Raises
     ------
     pipeline.errors.InputError
-        No readable ``real.json`` there.
+        No readable ``real.json`` there, or a scan record without a field the comparison
+        reads.
     """
+    from eval.suites._common import read_earlier
     from pipeline.errors import InputError
 
-    try:
-        scans = json.loads((folder / "real.json").read_text(encoding="utf-8"))["scans"]
-        if not isinstance(scans, dict):
-            raise TypeError
-    except (OSError, ValueError, TypeError, KeyError):
+    scans = read_earlier(folder, "real.json", "real", ("scans",))["scans"]
+    if not isinstance(scans, dict):
         raise InputError(f"--compare {folder}: no readable real.json there; give the --out "
-                         f"of an earlier 'unseen eval real' run") from None
+                         f"of an earlier 'unseen eval real' run")
     need = ("group", "tp", "fp", "fn", "found", "objects", "predicted_objects", "glue",
             "glue_between_objects", "stable", "stands_in", "missed_pairs", "false_pairs",
             "all_contacts")
@@ -197,17 +197,19 @@ def compare(out: Path, folder: Path, recs: list[dict]) -> str:
     def cell(ps: list, sign: str) -> str:
         return ", ".join(f"{sign}{x}-{y}" for x, y in ps)
 
+    def only_in(r: dict, other: dict, key: str) -> list:
+        """The pairs under ``key`` that ``r`` lists and ``other`` does not, sorted."""
+        return sorted({tuple(p) for p in r[key]} - {tuple(p) for p in other[key]})
+
+    same = ("tp", "fp", "fn", "found", "glue", "stable", "stands_in")
     rows, changed = [], []
     pairs = [(before[r["name"]], r) for r in recs if r["name"] in before]
     for a, b in pairs:
-        key = ("tp", "fp", "fn", "found", "glue", "stable")
-        if all(a[k] == b[k] for k in key) and a["stands_in"] == b["stands_in"]:
+        if all(a[k] == b[k] for k in same):
             continue
         fa, fb = group_figures([a])["f1"], group_figures([b])["f1"]
-        lost = sorted({tuple(p) for p in b["missed_pairs"]} - {tuple(p) for p in a["missed_pairs"]})
-        gained = sorted({tuple(p) for p in a["missed_pairs"]} - {tuple(p) for p in b["missed_pairs"]})
-        wrong = sorted({tuple(p) for p in b["false_pairs"]} - {tuple(p) for p in a["false_pairs"]})
-        fixed = sorted({tuple(p) for p in a["false_pairs"]} - {tuple(p) for p in b["false_pairs"]})
+        lost, gained = only_in(b, a, "missed_pairs"), only_in(a, b, "missed_pairs")
+        wrong, fixed = only_in(b, a, "false_pairs"), only_in(a, b, "false_pairs")
         rows.append([b["name"], b["group"], pct(fa), pct(fb), f"{a['found']} -> {b['found']}",
                      f"{a['glue']} -> {b['glue']}", f"{stands(a)} -> {stands(b)}",
                      "; ".join(x for x in (cell(gained, ""), cell(fixed, "not ")) if x),
