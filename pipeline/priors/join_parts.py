@@ -321,7 +321,10 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     leg whose upper end the overhanging top, or something in front, hid; its fit stops
     where the view lost it), the upper part first growing along one of its horizontal
     axes over the lower one's footprint where that sticks out (the top's end was hidden
-    too).  Each extension up to ``max_ext``: the caller, given views, keeps only joins
+    too).  Only a top grows so (a board, seen edge-on or not: longer than it is tall): an
+    upper part at least as tall as it is long (a chair's back, a post) is a panel or a
+    post standing up, whose thickness the view measured, and a leg beside it does not
+    make it a block.  Each extension up to ``max_ext``: the caller, given views, keeps only joins
     through space none of them saw empty.  Pairs in ``skip`` (touching, or joined by one
     short extension) are not tried.
     """
@@ -351,6 +354,9 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                 x = Extension(a, ax, _end(lo, ax, top=True), hz0 - lz1)
                 if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
                     continue
+                if grow and float(hi.size[up_axis(hi)]) >= max(float(hi.size[k])
+                                                               for k in horizontal_axes(hi)):
+                    continue  # only a top grows over what holds it up, not a panel or post
                 ext = (*grow, x)
                 out.append((a, b, Option("fixed", ext, sum(e.volume(arr.sizes) for e in ext))))
     return out
