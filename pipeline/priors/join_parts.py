@@ -13,7 +13,8 @@ joined through space a view saw empty, nor along a third part touching both.
 Hidden ends.  With views, a part under another of its object whose upper end no view
 saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from above)
 reaches up to it however far, the upper part growing over it where its end was hidden
-too.  Furniture stands on the floor and its parts hold each other up, so no stability
+too if it is a top (not a panel or a post standing up: a chair's back keeps the
+thickness the view measured).  Furniture stands on the floor and its parts hold each other up, so no stability
 need makes their hidden lower ends reach it: a part taller than wide, not standing on
 a part of its object, of an object another part of which stands within ``near_floor``
 of the floor (the floor's plane takes a few centimetres of every object's points with
@@ -321,12 +322,12 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     leg whose upper end the overhanging top, or something in front, hid; its fit stops
     where the view lost it), the upper part first growing along one of its horizontal
     axes over the lower one's footprint where that sticks out (the top's end was hidden
-    too).  Only a top grows so (a board, seen edge-on or not: longer than it is tall): an
-    upper part at least as tall as it is long (a chair's back, a post) is a panel or a
-    post standing up, whose thickness the view measured, and a leg beside it does not
-    make it a block.  Each extension up to ``max_ext``: the caller, given views, keeps only joins
-    through space none of them saw empty.  Pairs in ``skip`` (touching, or joined by one
-    short extension) are not tried.
+    too).  Only a top grows so (a board, seen edge-on or not: longer than it is tall):
+    an upper part at least as tall as it is long (a chair's back, a post) is a panel or
+    a post standing up, whose thickness the view measured, and a leg beside it does not
+    make it a block.  Each extension up to ``max_ext``: the caller, given views, keeps
+    only joins through space none of them saw empty.  Pairs in ``skip`` (touching, or
+    joined by one short extension) are not tried.
     """
     from ..extend import Extension, Option
 
