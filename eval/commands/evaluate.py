@@ -182,7 +182,7 @@ def run(args: argparse.Namespace) -> int:
         check_compare(args.compare, args.out, getattr(args, "first_seed", None), n,
                       QUICK_FAMILIES if args.quick else FAMILIES)
     elif getattr(args, "compare", None) is not None:
-        from eval.suites.pool import check_not_out
+        from eval.suites._common import check_not_out
         from eval.suites.real import read_real
 
         check_not_out(args.compare, args.out)

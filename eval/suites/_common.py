@@ -320,6 +320,15 @@ def read_earlier(folder: Path, name: str, suite: str, keys: Sequence[str]) -> di
                      f"earlier 'unseen eval {suite}' run")
 
 
+def check_not_out(folder: Path, out: Path) -> None:
+    """``--compare`` is not the ``--out`` of this run (one line)."""
+    from pipeline.errors import InputError
+
+    if Path(folder).resolve() == Path(out).resolve():
+        raise InputError(f"--compare {folder}: is the --out of this run; give the --out of "
+                         f"an earlier run of the same scenes")
+
+
 def clear_comparison(out: str | Path) -> None:
     """Remove the ``compare.*`` an earlier run with ``--compare`` wrote into ``out``: it no
     longer describes a run without it."""

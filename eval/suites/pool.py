@@ -208,18 +208,10 @@ def read_pool(folder: Path) -> dict:
     return {k: record[k] for k in keys}
 
 
-def check_not_out(folder: Path, out: Path) -> None:
-    """``--compare`` is not the ``--out`` of this run (one line)."""
-    from pipeline.errors import InputError
-
-    if folder.resolve() == out.resolve():
-        raise InputError(f"--compare {folder}: is the --out of this run; give the --out of "
-                         f"an earlier run of the same scenes")
-
-
 def check_compare(folder: Path, out: Path, first_seed: int, n: int, families) -> None:
     """``--compare``: an earlier pool of the same seed range and families, not ``--out``
     itself (one line, before any work)."""
+    from eval.suites._common import check_not_out
     from pipeline.errors import InputError
 
     check_not_out(folder, out)

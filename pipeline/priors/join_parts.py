@@ -14,8 +14,9 @@ Hidden ends.  With views, a part under another of its object whose upper end no 
 saw (:func:`hidden_joins`: a table's leg under its overhanging top, seen from above)
 reaches up to it however far, the upper part growing over it where its end was hidden
 too if it is a top (not a panel or a post standing up: a chair's back keeps the
-thickness the view measured).  Furniture stands on the floor and its parts hold each other up, so no stability
-need makes their hidden lower ends reach it: a part taller than wide, not standing on
+thickness the view measured).  Furniture stands on the floor and its parts hold each
+other up, so no stability need makes their hidden lower ends reach it: a part taller
+than wide, not standing on
 a part of its object, of an object another part of which stands within ``near_floor``
 of the floor (the floor's plane takes a few centimetres of every object's points with
 it), whose bottom is more than ``floor_gap`` above the floor, reaches down to it
@@ -334,6 +335,10 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
     out = []
     for parts in upright_parts(arr).values():
         corners = {k: c.corners() for k, c in parts}
+        # a top (longer than it is tall) may grow over what holds it up; a panel or a post
+        # standing up may not
+        top = {k: float(c.size[up_axis(c)]) < max(float(c.size[h]) for h in horizontal_axes(c))
+               for k, c in parts}
         for a, lo in parts:
             lz1 = z_range(lo)[1]
             for b, hi in parts:
@@ -353,11 +358,9 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
                             grow.append(Extension(b, k, side, float(over)))
                 ax = up_axis(lo)
                 x = Extension(a, ax, _end(lo, ax, top=True), hz0 - lz1)
-                if len(grow) > 1 or any(e.length > max_ext for e in (*grow, x)):
+                if (grow and not top[b]) or len(grow) > 1 or any(
+                        e.length > max_ext for e in (*grow, x)):
                     continue
-                if grow and float(hi.size[up_axis(hi)]) >= max(float(hi.size[k])
-                                                               for k in horizontal_axes(hi)):
-                    continue  # only a top grows over what holds it up, not a panel or post
                 ext = (*grow, x)
                 out.append((a, b, Option("fixed", ext, sum(e.volume(arr.sizes) for e in ext))))
     return out
