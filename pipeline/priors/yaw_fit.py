@@ -7,6 +7,12 @@ The points inside the box are counted at yaws within ``max_deg`` of its own, eve
 ``step_deg``; a box that holds ``gain`` times as many (and ``min_points`` more) at
 another yaw takes the middle of the plateau of best yaws.  Slanted or tilted boxes are
 left alone.
+
+Fits that agree outweigh a count: a part whose yaw ``agree_parts`` other parts of its
+object, fitted from their own segments, share within ``agree_deg`` keeps it.  Parts fitted
+apart are independent witnesses of their object's yaw, while the count is biased for a
+thin panel: turned about its centre, its ends sweep through the points of its neighbours
+(the books beside a shelf's side) and it holds more at a wrong yaw.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..boxops import is_upright, turned_by
+from ..boxops import is_upright, quarter_turn, turned_by, yaw_of
 from .base import Edit, Prior, principle_of
 
 
@@ -25,6 +31,8 @@ class Params:
     step_deg: float = 1.0  #: degrees between tried yaws
     gain: float = 1.15  #: the turned box must hold this many times the points ...
     min_points: int = 50  #: ... and at least this many more
+    agree_parts: int = 2  #: a part this many others of its object agree with keeps its yaw
+    agree_deg: float = 1.0  #: degrees (modulo 90) within which two parts' yaws agree
 
 
 def yaw_counts(c, pts: np.ndarray, tol: np.ndarray, near: list[int],
@@ -43,6 +51,17 @@ def yaw_counts(c, pts: np.ndarray, tol: np.ndarray, near: list[int],
     return inside
 
 
+def agreeing_parts(c, square, agree_deg: float) -> int:
+    """How many other upright parts of ``c``'s object (among ``square``) have its yaw
+    within ``agree_deg`` degrees, modulo a quarter turn."""
+    if c.object is None:
+        return 0
+    y = yaw_of(c.rotation)
+    tol = np.radians(agree_deg)
+    return sum(1 for o in square if o is not c and o.object == c.object
+               and abs(quarter_turn(y, yaw_of(o.rotation))) <= tol)
+
+
 def plateau_middle(counts: np.ndarray) -> int:
     """The middle of the yaws holding the most points within their counting noise."""
     top = np.flatnonzero(counts >= counts.max() - max(1, 0.005 * counts.max()))
@@ -58,8 +77,9 @@ def apply(arr, evidence, p: Params, ctx):
     pad = float(tol.max())
     offsets = np.radians(np.arange(-p.max_deg, p.max_deg + 1e-9, p.step_deg))
     zero = int(np.argmin(np.abs(offsets)))
-    for c in arr.cuboids:
-        if c.extra.get("slanted") or not is_upright(c):
+    square = [c for c in arr.cuboids if not c.extra.get("slanted") and is_upright(c)]
+    for c in square:
+        if agreeing_parts(c, square, p.agree_deg) >= p.agree_parts:
             continue
         near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
         if len(near) < p.min_points:
