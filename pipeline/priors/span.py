@@ -5,8 +5,10 @@ of boards and panels that run from one side of the object to the other (a sofa's
 from arm to arm, a shelf's board between its sides, a desk's side panel under the whole
 depth of its top).  A single view sees such a part only up to where something in front
 hid it, so its fit stops short of the object.  An upright board or panel (its thinnest
-extent at most its next one over ``panel_ratio``; a leg or a block is none) whose end
-along a horizontal axis other than its thickness stops more than ``min_reach`` short of
+extent at most its next one over ``panel_ratio``; a leg or a block is none; nor is a part
+most of whose object's parts standing over the same heights, ``copy_share`` of both, are
+posts: furniture repeats its legs, and a leg fitted as the sliver of one face is a leg)
+whose end along a horizontal axis other than its thickness stops more than ``min_reach`` short of
 how far the other parts of its object reach in that direction grows to that reach, or
 up to the near face of one of those parts on the way (it meets that part: a board stops
 at its side panel), whichever is furthest without entering a part of its object or
@@ -49,6 +51,35 @@ class Params:
     #: least share of the growth's samples that no view could see (something nearer in
     #: front of them, or no reading)
     hidden_min: float = 0.5
+    #: share of both heights two parts of one object stand over to be copies of each other
+    copy_share: float = 0.8
+
+
+def _board(c, p: Params) -> bool:
+    """Whether box ``c`` is a board or panel: its thinnest extent at most its next one over
+    ``panel_ratio``."""
+    ext = np.sort(c.size)
+    return bool(ext[0] <= ext[1] / p.panel_ratio)
+
+
+def _among_posts(c, mates, p: Params) -> bool:
+    """Whether most of the upright parts of ``c``'s object that stand over the same heights
+    as ``c`` (each sharing ``copy_share`` of both heights) are posts, not boards: ``c`` is
+    one of its object's legs, seen by a sliver of one face."""
+    lo, hi = z_range(c)
+    posts = boards = 0
+    for q in mates:
+        if not is_upright(q):
+            continue
+        qlo, qhi = z_range(q)
+        common = min(hi, qhi) - max(lo, qlo)
+        if common < p.copy_share * max(hi - lo, qhi - qlo):
+            continue
+        if _board(q, p):
+            boards += 1
+        else:
+            posts += 1
+    return posts > boards
 
 
 def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
@@ -62,9 +93,9 @@ def reaches(arr, k: int, p: Params) -> list[tuple[int, int, float]]:
     mates = [j for j, q in enumerate(arr.cuboids) if j != k and q.object == c.object]
     if not mates:
         return []
-    thin = int(np.argmin(c.size))
-    if c.size[thin] > float(np.sort(c.size)[1]) / p.panel_ratio:
+    if not _board(c, p) or _among_posts(c, [arr.cuboids[j] for j in mates], p):
         return []
+    thin = int(np.argmin(c.size))
     sub = arr.with_(cuboids=tuple(arr.cuboids[j] for j in mates))
     out = []
     for ax, side in [(a, s) for a in horizontal_axes(c) if a != thin for s in (0, 1)]:

@@ -100,3 +100,23 @@ def test_a_foot_lying_in_plain_view_on_a_desk_keeps_its_width():
     assert "foot" not in ids and out.cuboid("foot") is foot
     out, ids = changed("span", arr)  # without a view nothing says the ends were seen
     assert "foot" in ids and out.cuboid("foot").size[0] == pytest.approx(0.5, abs=1e-9)
+
+
+def test_a_leg_fitted_as_the_sliver_of_one_face_stays_a_leg_among_its_posts():
+    """A chair's four legs stand over the same heights; three are fitted as the posts they
+    are, one as a 1 cm sliver of its side face (a board by its proportions).  Most parts
+    standing over its heights are posts, so it is a leg too and does not run across the
+    chair.  A desk's side panel fitted as a 10 cm sliver of its front grows under the
+    whole top: the part standing over its heights, the other side, is a panel too."""
+    seat = box("seat", (0.0, 0.0, 0.45), (0.45, 0.45, 0.04), object="chair")
+    legs = [box(f"leg{i}", (x, y, 0.215), (0.04, 0.04, 0.43), object="chair")
+            for i, (x, y) in enumerate([(-0.2, -0.2), (0.2, -0.2), (-0.2, 0.2)])]
+    sliver = box("leg3", (0.2, 0.2, 0.215), (0.01, 0.04, 0.43), object="chair")
+    out, ids = changed("span", Arrangement((seat, *legs, sliver), (ground(),)))
+    assert ids == [] and out.cuboid("leg3") is sliver
+    top = box("top", (0.0, 0.0, 0.735), (1.2, 0.6, 0.03), object="desk")
+    left = box("left", (-0.59, 0.0, 0.36), (0.02, 0.6, 0.72), object="desk")
+    front = box("right", (0.59, -0.25, 0.36), (0.02, 0.1, 0.72), object="desk")
+    out, ids = changed("span", Arrangement((top, left, front), (ground(),)))
+    assert ids == ["right"]
+    assert_box(out.cuboid("right"), [0.02, 0.6, 0.72], [0.59, 0.0, 0.36])
