@@ -8,8 +8,9 @@ hid it, so its fit stops short of the object.  An upright board or panel (its th
 extent at most its next one over ``panel_ratio``; a leg or a block is none; nor is a part
 most of whose object's parts standing over the same heights, ``copy_share`` of both, are
 posts: furniture repeats its legs, and a leg fitted as the sliver of one face is a leg)
-whose end along a horizontal axis other than its thickness stops more than ``min_reach`` short of
-how far the other parts of its object reach in that direction grows to that reach, or
+whose end along a horizontal axis other than its thickness stops more than
+``min_reach`` short of how far the other parts of its object reach in that direction
+grows to that reach, or
 up to the near face of one of those parts on the way (it meets that part: a board stops
 at its side panel), whichever is furthest without entering a part of its object or
 sliding in under one it was not under (a side panel stands on the floor, not on the

@@ -51,15 +51,22 @@ def yaw_counts(c, pts: np.ndarray, tol: np.ndarray, near: list[int],
     return inside
 
 
-def agreeing_parts(c, square, agree_deg: float) -> int:
-    """How many other upright parts of ``c``'s object (among ``square``) have its yaw
-    within ``agree_deg`` degrees, modulo a quarter turn."""
-    if c.object is None:
-        return 0
-    y = yaw_of(c.rotation)
+def agreeing_parts(square, agree_deg: float) -> list[int]:
+    """For each box of ``square`` (upright boxes), how many other boxes of its object among
+    them have its yaw within ``agree_deg`` degrees, modulo a quarter turn (0 for a box of
+    no object)."""
+    yaws = [yaw_of(c.rotation) for c in square]
     tol = np.radians(agree_deg)
-    return sum(1 for o in square if o is not c and o.object == c.object
-               and abs(quarter_turn(y, yaw_of(o.rotation))) <= tol)
+    by_object: dict[str, list[int]] = {}
+    for i, c in enumerate(square):
+        if c.object is not None:
+            by_object.setdefault(c.object, []).append(i)
+    out = [0] * len(square)
+    for members in by_object.values():
+        for i in members:
+            out[i] = sum(1 for j in members
+                         if j != i and abs(quarter_turn(yaws[i], yaws[j])) <= tol)
+    return out
 
 
 def plateau_middle(counts: np.ndarray) -> int:
@@ -78,8 +85,8 @@ def apply(arr, evidence, p: Params, ctx):
     offsets = np.radians(np.arange(-p.max_deg, p.max_deg + 1e-9, p.step_deg))
     zero = int(np.argmin(np.abs(offsets)))
     square = [c for c in arr.cuboids if not c.extra.get("slanted") and is_upright(c)]
-    for c in square:
-        if agreeing_parts(c, square, p.agree_deg) >= p.agree_parts:
+    for c, agree in zip(square, agreeing_parts(square, p.agree_deg), strict=True):
+        if agree >= p.agree_parts:
             continue
         near = tree.query_ball_point(c.center, float(np.linalg.norm(c.size)) / 2 + pad)
         if len(near) < p.min_points:
