@@ -58,6 +58,7 @@ from ..boxops import (
     pushed,
     same_object_groups,
     up_axis,
+    upright_extent,
     z_range,
 )
 from ..contacts import candidate_pairs, find_contacts, pair_tolerance, sat_separation
@@ -337,8 +338,10 @@ def hidden_joins(arr: Arrangement, max_ext: float, skip: set[tuple[int, int]]):
         corners = {k: c.corners() for k, c in parts}
         # a top (longer than it is tall) may grow over what holds it up; a panel or a post
         # standing up may not
-        top = {k: float(c.size[up_axis(c)]) < max(float(c.size[h]) for h in horizontal_axes(c))
-               for k, c in parts}
+        top = {}
+        for k, c in parts:
+            height, longest = upright_extent(c)
+            top[k] = height < longest
         for a, lo in parts:
             lz1 = z_range(lo)[1]
             for b, hi in parts:

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..boxops import (
+    UP,
     extent_along,
     face_normal,
     horizontal_axes,
@@ -38,6 +39,7 @@ from ..boxops import (
     overlap_along,
     pushed,
     separations,
+    upright_extent,
     z_range,
 )
 from ..evidence import FREE_FRACTION_MAX, slab_samples
@@ -67,14 +69,11 @@ def _among_posts(c, mates, p: Params) -> bool:
     """Whether most of the upright parts of ``c``'s object that stand over the same heights
     as ``c`` (each sharing ``copy_share`` of both heights) are posts, not boards: ``c`` is
     one of its object's legs, seen by a sliver of one face."""
-    lo, hi = z_range(c)
+    height = upright_extent(c)[0]
     posts = boards = 0
     for q in mates:
-        if not is_upright(q):
-            continue
-        qlo, qhi = z_range(q)
-        common = min(hi, qhi) - max(lo, qlo)
-        if common < p.copy_share * max(hi - lo, qhi - qlo):
+        if not is_upright(q) or (overlap_along(c, q, UP)
+                                 < p.copy_share * max(height, upright_extent(q)[0])):
             continue
         if _board(q, p):
             boards += 1
