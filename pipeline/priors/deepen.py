@@ -57,8 +57,9 @@ whose end meets the back) is not pushed along it: its thickness is what the face
 rule says, not the length of the part beside it.
 
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
-their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
-above one another are as deep as each other, so the shallower one is pushed back to the
+their length) of the same length (within ``twin_size_rel``) and thickness (within
+``joined_min``: a chair's back rail standing on its edge above the seat is no twin of
+it), parallel (``twin_cos``) and above one another are as deep as each other, so the shallower one is pushed back to the
 deeper one's far face in the same way (a shelf's lower boards half hidden behind its
 books, its top board seen edge-on at eye height).
 
@@ -314,6 +315,8 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
             if q is c or q.object != c.object:
                 continue
             lc, lq = float(c.size[long]), float(q.size[qlong])
+            if abs(float(c.size[up_axis(c)]) - float(q.size[up_axis(q)])) > p.joined_min:
+                continue  # not as thick: a rail on its edge is no twin of a seat
             if (not alike(lc, lq, p.twin_size_rel)
                     or abs(float(c.rotation[:, long] @ q.rotation[:, qlong])) < p.twin_cos):
                 continue
