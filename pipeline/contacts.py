@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import workclock
 from .constants import CONTACT_ABS_TOL, CONTACT_REL_TOL
 from .model import CORNER_SIGNS, Arrangement, box_corners
 
@@ -330,6 +331,7 @@ def find_contacts(arr: Arrangement, rel_tol: float = CONTACT_REL_TOL) -> Contact
     -------
     ContactSet
     """
+    workclock.charge_contacts(len(arr.cuboids))
     names = arr.ids + arr.support_ids
     parts, penetrations = _contact_parts(arr, rel_tol, None)
     return _assemble(names, len(arr.cuboids), parts, tuple(penetrations))
@@ -415,6 +417,7 @@ def update_contacts(arr: Arrangement, base: Arrangement, base_contacts: ContactS
     then supports in order, each by ``a``), so it equals ``find_contacts(arr)``.  A pair
     depends only on its two boxes, which is what makes this exact.
     """
+    workclock.charge_contacts(len(arr.cuboids))
     K = len(arr.cuboids)
     names = arr.ids + arr.support_ids
     if base.ids != arr.ids or base.support_ids != arr.support_ids or base_contacts.names != names:
@@ -481,6 +484,7 @@ def update_contacts_of_one(variants: list[Arrangement], base: Arrangement,
     differ from ``base`` in cuboid ``k`` alone (refinement's finite differences), with the
     pairs of all variants computed in one batch: the same per-pair arithmetic, so the
     same contact sets.  A variant that differs elsewhere too is updated on its own."""
+    workclock.charge_contacts(len(base.cuboids) * len(variants))
     K = len(base.cuboids)
     names = base.ids + base.support_ids
     out: list = [None] * len(variants)

@@ -28,8 +28,9 @@
 Every edit a prior proposes passes :func:`pipeline.priors.gate.accept`; the report
 records each (prior, boxes, reason, verdict).  ``config.budget`` seconds bound the search,
 the second search and the glue relaxation (whatever is found by then is kept); the final
-refinement gets what is left, at least a tenth of it.  Below the budget the result
-depends only on the input.
+refinement gets what is left, at least a tenth of it.  The seconds are the work clock's
+(:mod:`pipeline.workclock`: stability checks and contact evaluations counted at a fixed
+cost each), so the result depends only on the input, within the budget or past it.
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+from . import workclock
 from .constants import ENERGY_THRESHOLD
 from .contacts import find_contacts
 from .evidence import Evidence
@@ -105,7 +107,7 @@ def _search_again(arr: Arrangement, edges, n_falling: int, t0: float,
     """A search of ``arr`` with wider candidates ``edges`` and the boxes that fall in its
     result, when fewer than ``n_falling`` do (None otherwise, or when less than a tenth
     of the budget is left)."""
-    left = config.budget - (time.perf_counter() - t0)
+    left = config.budget - (workclock.now() - t0)
     if left < 0.1 * config.budget:
         return None
     again = search(arr, edges, budget=left, mu=config.mu, threshold=config.threshold)
@@ -121,7 +123,8 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     budget, mu, threshold = config.budget, config.mu, config.threshold
     report = ImagineReport(disabled=tuple(sorted(config.disabled)))
     timings = report.timings
-    t0 = t = time.perf_counter()
+    t = time.perf_counter()
+    t0 = workclock.now()  # the budget is counted in work (pipeline.workclock)
     arr = arr.with_(contacts=(), stability=None)
     # keep the observed box of every cuboid (before any change)
     arr = arr.with_(cuboids=tuple(
@@ -192,7 +195,7 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
         arr = arr.with_(cuboids=tuple(c for c in arr.cuboids if c.id not in bad))
         edges, _ = prune_by_visibility(arr, candidate_edges(arr, eyes=eyes),
                                        list(evidence.views), evidence.margin)
-        left = budget - (time.perf_counter() - t0)
+        left = budget - (workclock.now() - t0)
         if left < 0.1 * budget:  # no time for another search: keep the best effort
             break
         result = search(arr, edges, budget=left, mu=mu, threshold=threshold)
@@ -218,7 +221,7 @@ def imagine(arr: Arrangement, evidence: Evidence | None = None,
     if final.stability is not None and final.stability.energy > (
             ENERGY_THRESHOLD if threshold is None else threshold) / 100:
         refined = refine(final, mu=mu, max_steps=config.refine_steps, threshold=threshold,
-                         deadline=max(t0 + budget, time.perf_counter() + 0.1 * budget))
+                         deadline=max(t0 + budget, workclock.now() + 0.1 * budget))
         fixed = [c for c in refined.arrangement.contacts if c.type == "fixed"]
         final = finalize(refined.arrangement, fixed, mu=mu, threshold=threshold)
         report.refine = {"energy_before": refined.energy_before,

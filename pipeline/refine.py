@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import workclock
 from .contacts import ContactSet, find_contacts, update_contacts, update_contacts_of_one
 from .errors import InputError
 from .model import Arrangement, Cuboid
@@ -170,12 +171,11 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
 
     With ``tilt_deg`` > 0 the energy is that of the first tilt of gravity by that angle
     under which the arrangement fails (``check_stability(tilt_deg=...)``): the result then
-    stands with a margin.  ``deadline`` (a ``time.perf_counter()`` value) stops the steps
+    stands with a margin.  ``deadline`` (a :func:`pipeline.workclock.now` value) stops the steps
     early; the best arrangement so far is returned.  ``contacts`` (those of ``arr``) and
     ``solve_cache`` (component solutions kept by the caller, see ``check_stability``)
     only save work.
     """
-    import time
 
     from .constants import ENERGY_THRESHOLD
 
@@ -188,14 +188,14 @@ def refine(arr: Arrangement, mu: float = 0.7, max_steps: int = 20, threshold: fl
     scale = arr.scale_length()
     h_fd = 1e-3 * scale
     while steps < max_steps and np.isfinite(E) and E > threshold / 100:
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline is not None and workclock.now() > deadline:
             break
         # cuboids of bodies that carry energy worth lowering (round-off residues of
         # 1e-30 do not: each hot cuboid costs twelve evaluations)
         hot = [k for k, b in enumerate(res.bodies) if b.energy > threshold / 100]
         best = None
         for k in hot:
-            if best is not None and deadline is not None and time.perf_counter() > deadline:
+            if best is not None and deadline is not None and workclock.now() > deadline:
                 break
             c = arr.cuboids[k]
             x0 = np.concatenate([c.center, c.size])

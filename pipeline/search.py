@@ -42,8 +42,9 @@ blocks and right-hand side, digested) was solved at an earlier node, or under an
 tilt, takes that solution from the group's cache (``check_stability(solve_cache=...)``),
 so a node that changes one edge re-solves only the components its boxes belong to.
 A node in which some box touches nothing is unstable without a solve (that box's body
-has no contact force to carry its weight).  The search has a time budget
-and always returns the best arrangement found; when even the root is unstable (a
+has no contact force to carry its weight).  The search has a budget, in seconds of the
+work clock (:mod:`pipeline.workclock`, so the same input stops at the same point on any
+machine), and always returns the best arrangement found; when even the root is unstable (a
 support was missed), the root is returned, marked unstable, with the boxes that move.
 """
 
@@ -55,6 +56,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import workclock
 from .boxops import same_column
 from .contacts import (
     ContactSet,
@@ -415,7 +417,7 @@ class _Group:
         n = len(self.edges)
 
         def dive(level: int, assignment: list[int]) -> None:
-            if time.perf_counter() > deadline:
+            if workclock.now() > deadline:
                 self.stats.budget_spent = True
                 return
             if level == n:
@@ -441,7 +443,7 @@ class _Group:
                         self.stats.pruned_unstable += 1
                     continue
                 dive(level + 1, trial)
-                if time.perf_counter() > deadline:
+                if workclock.now() > deadline:
                     self.stats.budget_spent = True
                     return
 
@@ -477,7 +479,7 @@ class _Group:
 
         def attempt(level: int, i: int) -> bool:
             nonlocal current
-            if time.perf_counter() > deadline:
+            if workclock.now() > deadline:
                 self.stats.budget_spent = True
                 return False
             trial = list(current)
@@ -518,7 +520,7 @@ class _Group:
                 took their first touch option."""
                 nonlocal current
                 if len(levels) > 1 and not known_bad and all(keeps(lv) for lv in levels):
-                    if time.perf_counter() > deadline:
+                    if workclock.now() > deadline:
                         self.stats.budget_spent = True
                         return False
                     trial = list(current)
@@ -610,7 +612,7 @@ class _Group:
                 want = fopts[current[m]].type
                 done = False
                 for i, o in enumerate(opts):
-                    if o.type != want or time.perf_counter() > deadline:
+                    if o.type != want or workclock.now() > deadline:
                         continue
                     if not alike and not self._short_reach(current, o):
                         continue
@@ -644,7 +646,7 @@ class _Group:
         current = tuple(assignment)
         cost = self.cost(current)
         changed = True
-        while changed and time.perf_counter() < deadline:
+        while changed and workclock.now() < deadline:
             changed = False
             for level in range(len(self.edges)):
                 for i in range(len(self.options[level])):
@@ -661,10 +663,10 @@ class _Group:
                     if ok and (keep is None or keep(trial)):
                         current, cost, changed = trial, c, True
                         break
-                if time.perf_counter() > deadline:
+                if workclock.now() > deadline:
                     self.stats.budget_spent = True
                     break
-            if not changed and time.perf_counter() < deadline:
+            if not changed and workclock.now() < deadline:
                 for trial in (*self._join_swaps(current), *self._glue_moves(current, deadline)):
                     c = self.cost(trial)
                     if c >= cost:
@@ -694,7 +696,7 @@ class _Group:
             near |= {e.a, e.b}
         for lv, e in enumerate(self.edges):
             if (lv in glued or e.same_object or not {e.a, e.b} & near
-                    or time.perf_counter() > deadline):
+                    or workclock.now() > deadline):
                 continue
             for i, o in enumerate(self.options[lv]):
                 if o.type != "fixed":
@@ -778,11 +780,12 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
     edges : list of Edge
         Candidates from :func:`pipeline.extend.candidate_edges` (after pruning).
     budget : float
-        Seconds for the whole search; the best arrangement found so far is returned.
+        Work-clock seconds (:mod:`pipeline.workclock`) for the whole search; the best
+        arrangement found by then is returned.
     progress : callable, optional
         ``progress(done_groups, total_groups)``.
     """
-    t0 = time.perf_counter()
+    t0, w0 = time.perf_counter(), workclock.now()
     stats = SearchStats(edges=len(edges))
     K = len(arr.cuboids)
     groups = _groups(K, edges)
@@ -797,8 +800,8 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
     choices = {}
     n_fixed = 0
     for gi, (boxes, gedges) in enumerate(groups):
-        now = time.perf_counter()
-        left = budget - (now - t0)
+        now = workclock.now()
+        left = budget - (now - w0)
         share = left * max(len(gedges), 1) / max(remaining_edges, 1)
         remaining_edges -= len(gedges)
         group = _Group(arr, boxes, gedges, mu, threshold, stats)

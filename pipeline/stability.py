@@ -84,6 +84,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
+from . import workclock
 from .constants import (
     DEFAULT_MU,
     ENERGY_THRESHOLD,
@@ -506,6 +507,7 @@ def check_stability(arr: Arrangement, mu: float = DEFAULT_MU, threshold: float |
         ``stable`` False with ``status`` "interpenetration" when boxes overlap beyond
         the contact tolerance.
     """
+    workclock.charge_stability(len(arr.cuboids))
     if not np.isfinite(mu) or mu < 0:
         raise InputError(f"--mu: friction coefficient must be a non-negative number, got {mu}")
     threshold = ENERGY_THRESHOLD if threshold is None else float(threshold)

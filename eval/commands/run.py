@@ -83,7 +83,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="seconds for imagining the unseen: the contact search, searching again "
                         "without boxes nothing can hold up, and dropping glue joints (the best "
                         "found so far is kept); refinement then gets what is left, at least a "
-                        "tenth of it")
+                        "tenth of it; work-clock seconds (pipeline/workclock.py), so the same "
+                        "scan gives the same result on any machine")
     p.add_argument("--mu", type=float, default=0.7,
                    help="friction coefficient (default 0.7): used by the search, written to "
                         "scene.xml / scene.urdf and recorded as meta.mu for check and export")

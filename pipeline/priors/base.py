@@ -78,7 +78,7 @@ class Verdict:
 class Context:
     """What a ``settle`` prior needs besides the arrangement and the evidence: the
     searched boxes before extension (``initial``), their candidate edges, the friction
-    coefficient, the stability threshold and a deadline (``time.perf_counter()``)."""
+    coefficient, the stability threshold and a deadline (a :func:`pipeline.workclock.now` value)."""
 
     initial: Arrangement | None = None
     edges: tuple = ()

@@ -21,12 +21,12 @@ what holds it together and stay.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
+from .. import workclock
 from ..boxops import UP, extent_along, face_normal, floor_height, horizontal_axes, touching_group
 from ..contacts import find_contacts
 from ..errors import InputError
@@ -156,14 +156,14 @@ def apply(arr, evidence, p: Params, ctx):
     # and what its grown boxes touch after the drop): otherwise its try comes out the same
     drops: list[set] = []
     pending = joints
-    while pending and time.perf_counter() <= deadline:
+    while pending and workclock.now() <= deadline:
         left = []  # (joint, its group, drops before its try)
         for key in pending:
             i = next((j for j, x in enumerate(final.contacts)
                       if x.key == key and x.type == "fixed"), None)
             if i is None:
                 continue
-            if time.perf_counter() > deadline:
+            if workclock.now() > deadline:
                 break
             c = final.contacts[i]
             contacts = tuple(replace(x, type="touch") if j == i else x
