@@ -1,51 +1,49 @@
 """Choosing contact types and extensions: branch and bound (paper section 4.2, Algorithm 1).
 
 Every candidate edge (a pair of cuboids, or a cuboid and a support, see
-:mod:`pipeline.extend`) takes exactly one of its options.  A choice is feasible when
-no boxes interpenetrate and the arrangement is stable (:mod:`pipeline.stability`);
-among feasible choices we minimise, lexicographically, the number of ``fixed``
-contacts, then the number of pieces the objects fall into, then the number of parts
-of one object a short extension could join but that are left apart, then the added
-volume.
-Edges between two parts of the same object are fused where they touch (their ``fixed``
-costs nothing: the segmentation says they are one rigid object): they choose between
-staying apart and an extension that joins them, and join when a short extension can
+:mod:`pipeline.extend`) takes exactly one of its options.  A choice is feasible when no
+boxes interpenetrate and the arrangement is stable (:mod:`pipeline.stability`); among
+feasible choices we minimise, lexicographically, the number of ``fixed`` contacts, then
+the number of pieces the objects fall into, then the number of parts of one object a
+short extension could join but that are left apart, then the added volume.  Edges
+between two parts of the same object are fused where they touch (their ``fixed`` costs
+nothing: the segmentation says they are one rigid object): they choose between staying
+apart and an extension that joins them, and join when a short extension can
 (:data:`SHORT_JOIN`: a shelf's boards all meet its side panel, not only the one the
 statics needs; a desk's two side panels stay apart rather than grow into one).
 
 Branch and bound
 ----------------
 The root sets every edge to its most supportive option (``fixed``, with the smallest
-extension that does not interpenetrate).  Turning a ``fixed`` into ``touch`` or none
-can only remove support, so when a node is unstable with its undecided edges still
-fixed, no completion of it can be stable: the whole subtree is pruned.  Edges are
-decided one at a time in a fixed order (the most expensive first), each trying its
-options cheapest first, so the first leaf reached is a greedy solution and later
-leaves only replace it when strictly cheaper; a node whose decided edges already cost
-as much as the best leaf is cut.  A greedy solution comes first (:meth:`_Group.greedy`:
-relax fixed to touch keeping extensions, then shed volume; then single-edge moves to
-cheaper options, joins swapped and glue moved along a chain of contacts), so the bound
-prunes hard from the start; groups of up to
-``EXACT_MAX_EDGES`` edges are then searched exhaustively within the budget.  When the
-siblings step (:meth:`_Group.siblings`) gives hanging parts their siblings' support,
-single-edge moves to cheaper options are tried once more, keeping what that step
-would give back (a chair's back the greedy left stretched to the floor while two legs
-hung is released once all four legs stand).  Independent groups
-(cuboids that no edge connects) are searched separately, stability results are cached per assignment, and contact
-geometry per set of extensions (type changes reuse it).
+extension that does not interpenetrate).  Turning a ``fixed`` into ``touch`` or none can
+only remove support, so when a node is unstable with its undecided edges still fixed, no
+completion of it can be stable: the whole subtree is pruned.  Edges are decided one at a
+time in a fixed order (the most expensive first), each trying its options cheapest
+first, so the first leaf reached is a greedy solution and later leaves only replace it
+when strictly cheaper; a node whose decided edges already cost as much as the best leaf
+is cut.  A greedy solution comes first (:meth:`_Group.greedy`: relax fixed to touch
+keeping extensions, then shed volume; then single-edge moves to cheaper options, joins
+swapped and glue moved along a chain of contacts), so the bound prunes hard from the
+start; groups of up to ``EXACT_MAX_EDGES`` edges are then searched exhaustively within
+the budget.  When the siblings step (:meth:`_Group.siblings`) gives hanging parts their
+siblings' support, single-edge moves to cheaper options are tried once more, keeping
+what that step would give back (a chair's back the greedy left stretched to the floor
+while two legs hung is released once all four legs stand).  Independent groups (cuboids
+that no edge connects) are searched separately, stability results are cached per
+assignment, and contact geometry per set of extensions (type changes reuse it).
 
-Evaluating a node reuses the work of earlier nodes exactly: its contacts are updated
-from the closest recent geometry (only pairs with a box whose extensions differ are
-recomputed, :func:`pipeline.contacts.update_contacts`); the equilibrium is solved per
-independent component of free bodies, and a component whose sub-problem (matrix
-blocks and right-hand side, digested) was solved at an earlier node, or under another
-tilt, takes that solution from the group's cache (``check_stability(solve_cache=...)``),
-so a node that changes one edge re-solves only the components its boxes belong to.
-A node in which some box touches nothing is unstable without a solve (that box's body
-has no contact force to carry its weight).  The search has a budget, in seconds of the
-work clock (:mod:`pipeline.workclock`, so the same input stops at the same point on any
-machine), and always returns the best arrangement found; when even the root is unstable (a
-support was missed), the root is returned, marked unstable, with the boxes that move.
+Evaluating a node reuses the work of earlier nodes exactly: its contacts are updated from
+the closest recent geometry (only pairs with a box whose extensions differ are recomputed,
+:func:`pipeline.contacts.update_contacts`); the equilibrium is solved per independent
+component of free bodies, and a component whose sub-problem (matrix blocks and right-hand
+side, digested) was solved at an earlier node, or under another tilt, takes that solution
+from the group's cache (``check_stability(solve_cache=...)``), so a node that changes one
+edge re-solves only the components its boxes belong to.  A node in which some box touches
+nothing is unstable without a solve (that box's body has no contact force to carry its
+weight).  The search has a budget on the work clock (:mod:`pipeline.workclock`: the same
+input stops at the same point on any machine) and returns the best arrangement found;
+when even the root is unstable (a support was missed), the root is returned, marked
+unstable, with the boxes that move.
 """
 
 from __future__ import annotations
@@ -780,8 +778,7 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
     edges : list of Edge
         Candidates from :func:`pipeline.extend.candidate_edges` (after pruning).
     budget : float
-        Work-clock seconds (:mod:`pipeline.workclock`) for the whole search; the best
-        arrangement found by then is returned.
+        Work-clock seconds (:mod:`pipeline.workclock`); the best arrangement found is kept.
     progress : callable, optional
         ``progress(done_groups, total_groups)``.
     """
