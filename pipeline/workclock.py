@@ -16,11 +16,14 @@ machine (room-1001 spends its 10 s in about 15 s); on a faster machine it takes 
 time, on a slower one more, and the answer is the same.
 
 The clock is kept per context (:mod:`contextvars`): each thread and each process
-counts its own work.
+counts its own work, and :func:`fresh` starts it at zero for one call (an ``imagine``),
+so the sums it compares with its deadlines do not depend on the work done before it
+(floating-point sums of the same charges from another start could round differently).
 """
 
 from __future__ import annotations
 
+import contextlib
 import contextvars
 
 #: Work-clock seconds one stability check charges per box of its arrangement.
@@ -29,6 +32,24 @@ STABILITY_COST_PER_BOX = 5e-4
 CONTACTS_COST_PER_BOX = 6e-5
 
 _spent: contextvars.ContextVar[float] = contextvars.ContextVar("unseen_work_spent", default=0.0)
+_inside: contextvars.ContextVar[bool] = contextvars.ContextVar("unseen_work_fresh", default=False)
+
+
+@contextlib.contextmanager
+def fresh():
+    """Run the block on a work clock started at zero, then put the outer one back with
+    the block's work added; inside another ``fresh`` block it only runs the block."""
+    if _inside.get():
+        yield
+        return
+    inside, spent = _inside.set(True), _spent.set(0.0)
+    try:
+        yield
+    finally:
+        work = _spent.get()
+        _spent.reset(spent)
+        _inside.reset(inside)
+        charge(work)
 
 
 def now() -> float:
@@ -51,5 +72,5 @@ def charge_contacts(n_boxes: int) -> None:
     charge(CONTACTS_COST_PER_BOX * max(int(n_boxes), 1))
 
 
-__all__ = ["now", "charge", "charge_stability", "charge_contacts",
+__all__ = ["now", "fresh", "charge", "charge_stability", "charge_contacts",
            "STABILITY_COST_PER_BOX", "CONTACTS_COST_PER_BOX"]

@@ -990,3 +990,37 @@ def test_a_search_stopped_by_its_budget_stops_at_the_same_point_however_slow_the
     np.testing.assert_array_equal(slowed.arrangement.sizes, fast.arrangement.sizes)
     monkeypatch.setattr(search_module, "check_stability", real)
     assert search(arr, edges, budget=5).stats.nodes > fast.stats.nodes
+
+
+def test_imagine_runs_on_a_work_clock_of_its_own():
+    """``imagine`` starts its work clock at zero whatever work came before it (a worker
+    that ran other scenes first), and hands its work on to the outer clock."""
+    from pipeline import workclock
+
+    arr = _loose_tower(4)
+    first = workclock.now()
+    a = imagine(arr, budget=5)
+    spent = workclock.now() - first
+    assert spent > 0
+    workclock.charge(12345.678)  # much work done before, as in a long-lived worker
+    seen = []
+    real = workclock.charge_stability
+
+    def spy(n):
+        seen.append(workclock.now())
+        real(n)
+
+    import pipeline.stability as stability_module
+    stability_module.workclock.charge_stability = spy
+    try:
+        b = imagine(arr, budget=5)
+    finally:
+        stability_module.workclock.charge_stability = real
+    # every check inside sees a clock started at zero, not the 12345 s done before
+    assert seen and 0.0 < seen[0] < max(seen) <= spent + 1e-9
+    np.testing.assert_array_equal(a.arrangement.sizes, b.arrangement.sizes)
+    with workclock.fresh():
+        inner = workclock.now()
+        with workclock.fresh():  # nested: the same clock
+            workclock.charge(1.0)
+        assert workclock.now() == inner + 1.0
