@@ -34,6 +34,10 @@ A neighbour seen as the slab is does not bound it: a slab as deep within a facto
 least ``thin_fraction`` as wide, whose depth is as unseen as the slab's; so a pile of
 flat boxes seen from the front goes back box by box, while one box of the pile whose
 depth the view did see bounds the slivers on it.
+A board of furniture standing on its long edge (at least twice as tall as the view saw
+it deep) on a post of its object (narrower along the board than ``thin_fraction`` of
+its height) goes no deeper than that post reaches behind it: a chair's back rail on its
+back posts, filmed from behind, is not pushed over the seat into a floating block.
 Blocked within a step by a broad face (a back cushion a few degrees askew to the sofa's
 back), it goes as deep as it fits, to ``resolution``.  "No view saw the added space
 empty" holds for every layer a push adds (each of its ``steps``), not for the added
@@ -178,6 +182,24 @@ def stack_reach(arr: Arrangement, c, u: np.ndarray, p: Params) -> float:
     if not touching:
         return float("inf")
     return max(extent_along(q, u)[1] for q in touching) - near
+
+
+def post_reach(arr: Arrangement, c, axis: int, u: np.ndarray, p: Params) -> float:
+    """How far behind ``c``'s face against ``u`` the post it stands on reaches, when
+    ``c`` is a board standing on its long edge (at least twice as tall as it is thick
+    along ``axis``) on a post of its object (a part narrower along ``c``'s length than
+    ``p.thin_fraction`` of ``c``'s height: a chair's back rail on its back posts); inf
+    otherwise."""
+    height = float(c.size[up_axis(c)])
+    if c.object is None or height < 2.0 * float(c.size[axis]):
+        return float("inf")
+    below = resting_on(arr, c, p.rest_gap)
+    if below is None or below.object != c.object:
+        return float("inf")
+    length = c.rotation[:, next(a for a in horizontal_axes(c) if a != axis)]
+    if float(np.ptp(extent_along(below, length))) >= p.thin_fraction * height:
+        return float("inf")
+    return extent_along(below, u)[1] - extent_along(c, u)[0]
 
 
 def across(c, axis: int) -> float:
@@ -488,6 +510,7 @@ def _face_on(arr, evidence, p: Params):
             target = min(width, object_depth(arr, c, axis), reach)
             if height < p.thin_fraction * width and single_part(arr, c):
                 target = min(target, stack_reach(arr, c, u, p))
+            target = min(target, post_reach(arr, c, axis, u, p))
             full = target - float(c.size[axis])
             if full <= 1e-4:
                 break

@@ -1384,6 +1384,31 @@ def test_a_chair_back_seen_face_on_is_deepened_no_further_than_its_seat_reaches(
     assert b.center[1] + b.size[1] / 2 == pytest.approx(0.225, abs=1e-9)  # the seat's rear
 
 
+def test_a_back_rail_seen_face_on_goes_no_deeper_than_the_posts_it_stands_on():
+    """A chair's back rail (50 cm long, 14 cm tall, 4 cm deep) stands on two back posts
+    above the seat; filmed from behind and below its top, it shows its back face only,
+    fitted 1 cm deep, and the space in front of it is hidden.  It is no panel (wider than
+    twice its height), so the face-on rule gave it the chair's depth: a block floating
+    over the seat (chair-113003 of a held-out pool).  Standing on its long edge on posts
+    of its object, it goes no deeper than they reach: 4 cm."""
+    seat = box("seat", (0.0, 0.0, 0.52), (0.5, 0.45, 0.04), object="chair")
+    posts = [box(f"post{i}", (sx * 0.235, 0.205, 0.62), (0.03, 0.04, 0.16), object="chair")
+             for i, sx in enumerate((-1, 1))]
+    rail = box("rail", (0.0, 0.205, 0.77), (0.5, 0.04, 0.14), object="chair")
+    views = _view_from((0.8, 2.2, 0.8), [seat, *posts, rail], (0.0, 0.0, 0.6))
+    sliver = box("rail", (0.0, 0.22, 0.77), (0.5, 0.01, 0.14), object="chair")
+    arr = Arrangement((seat, *posts, sliver), (ground(),))
+    up = np.array([0.0, -1.0, 0.0])  # away from the camera
+    assert deepen.post_reach(arr, sliver, 1, up, DEEPEN) == pytest.approx(0.04)
+    out, ids = deepen_thin_boxes(arr, views)
+    assert "rail" in ids
+    assert_box(out.cuboid("rail"), rail.size, rail.center)
+    # the same board standing on the seat itself (no posts) is bounded by the seat only
+    on_seat = box("rail", (0.0, 0.22, 0.61), (0.5, 0.01, 0.14), object="chair")
+    assert deepen.post_reach(Arrangement((seat, on_seat), (ground(),)), on_seat, 1, up,
+                             DEEPEN) == float("inf")
+
+
 def test_a_screen_seen_face_on_is_not_deepened_to_the_foot_under_its_neck():
     # a monitor's screen seen from the front as a 7 mm slab; its foot reaches 9 cm behind
     # it, but only through the neck behind the screen: the foot is not joined to the
