@@ -196,8 +196,10 @@ def post_reach(arr: Arrangement, c, axis: int, u: np.ndarray, p: Params) -> floa
     below = resting_on(arr, c, p.rest_gap)
     if below is None or below.object != c.object:
         return float("inf")
-    length = c.rotation[:, next(a for a in horizontal_axes(c) if a != axis)]
-    if float(np.ptp(extent_along(below, length))) >= p.thin_fraction * height:
+    along = [a for a in horizontal_axes(c) if a != axis]
+    if not along:  # tilted: no length lies level
+        return float("inf")
+    if float(np.ptp(extent_along(below, c.rotation[:, along[0]]))) >= p.thin_fraction * height:
         return float("inf")
     return extent_along(below, u)[1] - extent_along(c, u)[0]
 
