@@ -767,6 +767,7 @@ def _groups(K: int, edges: list[Edge]) -> list[tuple[list[int], list[Edge]]]:
     return [(members[r], by_root[r]) for r in sorted(members)]
 
 
+@workclock.fresh()  # a clock of its own when called alone; imagine's when inside it
 def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: float = 0.7,
            threshold: float | None = None, progress=None) -> SearchResult:
     """Branch and bound over the candidate edges of ``arr`` (see the module docstring).
@@ -779,8 +780,7 @@ def search(arr: Arrangement, edges: list[Edge], *, budget: float = 10.0, mu: flo
         Candidates from :func:`pipeline.extend.candidate_edges` (after pruning).
     budget : float
         Work-clock seconds (:mod:`pipeline.workclock`); the best arrangement found is kept.
-    progress : callable, optional
-        ``progress(done_groups, total_groups)``.
+    progress : callable, optional: ``progress(done_groups, total_groups)``.
     """
     t0, w0 = time.perf_counter(), workclock.now()
     stats = SearchStats(edges=len(edges))

@@ -18,7 +18,8 @@ time, on a slower one more, and the answer is the same.
 The clock is kept per context (:mod:`contextvars`): each thread and each process
 counts its own work, and :func:`fresh` starts it at zero for one call (an ``imagine``),
 so the sums it compares with its deadlines do not depend on the work done before it
-(floating-point sums of the same charges from another start could round differently).
+(floating-point sums of the same charges from another start could round differently);
+``search`` called alone does the same (``fresh`` also decorates).
 """
 
 from __future__ import annotations
