@@ -21,7 +21,9 @@ A candidate whose added volume lies in space the sensor saw as empty is rejected
 (:func:`visible_free_fraction`): points sampled in the added slab are projected into
 the depth image; a sample clearly in front of the measured depth (beyond the sensor
 noise at that depth) was seen through.  Pixels with no reading, or outside the image,
-say nothing.
+say nothing.  The slab is judged in layers along the push (:func:`layers_unseen`), as
+the priors judge theirs: a layer seen empty ends it, however much of the space beyond
+was out of the picture or in a shadow.
 """
 
 from __future__ import annotations
@@ -494,6 +496,29 @@ def prune_penetrating(arr: Arrangement, edges: list[Edge]) -> tuple[list[Edge], 
     return out, rejected
 
 
+#: An extension is judged in this many layers along its push (each no thinner than
+#: :data:`LAYER_MIN` metres): no layer may be seen empty.
+LAYERS = 4
+LAYER_MIN = 0.05
+
+
+def layers_unseen(arr: Arrangement, x: Extension, views: list[DepthView], margin: float
+                  ) -> bool:
+    """Whether no layer of the slab that extension ``x`` adds was seen empty (at most
+    :data:`FREE_FRACTION_MAX` of its samples seen through): a camera looking over a
+    box's edge sees the space beside it only from some distance on, and the box ends
+    before that layer however much of the space nearer its face the box's own shadow
+    hides (the space right under a wall shelf's lowest board, seen empty, under which
+    the rest down to the floor is hidden by the board)."""
+    n = int(min(LAYERS, max(1, x.length // LAYER_MIN)))
+    ends = [x.length * j / n for j in range(n + 1)]
+    for j in range(1, n + 1):
+        layer = slab_samples(arr, Extension(x.box, x.axis, x.side, ends[j]), start=ends[j - 1])
+        if visible_free_fraction(layer, views, margin) > FREE_FRACTION_MAX:
+            return False
+    return True
+
+
 def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],
                         margin: float, whole_only: frozenset[int] = frozenset(),
                         cache: dict | None = None) -> tuple[list[Edge], int]:
@@ -520,8 +545,7 @@ def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthVi
             for x in o.extensions:
                 if (x, whole) not in cache:
                     pts = slab_samples(arr, x)
-                    cache[x, whole] = ((whole or visible_free_fraction(pts, views, margin)
-                                        <= FREE_FRACTION_MAX)
+                    cache[x, whole] = ((whole or layers_unseen(arr, x, views, margin))
                                        and not seen_in_front(pts, views))
                 ok &= cache[x, whole]
             if ok:
