@@ -11,12 +11,9 @@ An edit (:class:`pipeline.priors.base.Edit`) is rejected, with the reason, when
    prior's job; a box merged into another counts with the overlaps of both);
 2. **it puts volume where a depth view saw empty space**: more than
    :data:`pipeline.evidence.FREE_FRACTION_MAX` of the samples of the volume it adds to
-   a box (each layer of each pushed face's slab, up to :data:`pipeline.extend.LAYERS`
-   of at least :data:`pipeline.extend.LAYER_MIN` metres, as the search judges its
-   extensions: a layer seen empty ends a push however much beyond it was out of the
-   picture; for a turned box, the part outside the old box; a new box whole) lie
-   clearly in front of the depth (:mod:`pipeline.evidence`, one noise model for every
-   prior);
+   a box (each pushed face's slab; for a turned box, the part outside the old box; a
+   new box whole) lie clearly in front of the depth (:mod:`pipeline.evidence`, one
+   noise model for every prior);
 3. **after the search** (stage ``settle``) **a box falls that stood**: the arrangement with the edit, its
    contacts listed from the geometry (``fixed`` where the edit says), fails the analytic
    check with gravity tilted by :data:`TILT_DEG` (the margin the search demands: no
@@ -39,7 +36,6 @@ from ..boxops import box_samples, near
 from ..contacts import find_contacts
 from ..errors import InputError
 from ..evidence import FREE_FRACTION_MAX, Evidence
-from ..extend import LAYER_MIN, LAYERS
 from ..model import Arrangement, Cuboid
 from .base import Context, Edit, Verdict
 
@@ -98,11 +94,9 @@ def entered(arr: Arrangement, trial: Arrangement, edit: Edit) -> str | None:
 
 
 def added_samples(old: Cuboid | None, new: Cuboid, n: int = SAMPLES) -> list[np.ndarray]:
-    """Samples of the volume ``new`` adds to ``old``: one set per layer of each pushed
-    face's slab (up to :data:`~pipeline.extend.LAYERS` from the old face out, each at
-    least :data:`~pipeline.extend.LAYER_MIN` thick, kept off the borders as the
-    candidates' slabs are), the part of a turned box outside the old one, or the whole
-    of a new box."""
+    """Samples of the volume ``new`` adds to ``old``: one set per pushed face (its slab,
+    kept off the borders as the candidates' slabs are), the part of a turned box outside
+    the old one, or the whole of a new box."""
     if old is None:
         return [box_samples(new, n)]
     if not np.allclose(old.rotation, new.rotation, atol=1e-12):
@@ -121,19 +115,14 @@ def added_samples(old: Cuboid | None, new: Cuboid, n: int = SAMPLES) -> list[np.
         for lo, hi in ((o_hi[axis], n_hi[axis]), (n_lo[axis], o_lo[axis])):
             if hi - lo <= 1e-6:
                 continue
-            face = lo if lo == o_hi[axis] else hi  # the old face the slab grows from
-            step = (hi - lo if face == lo else lo - hi)
-            layers = int(min(LAYERS, max(1, (hi - lo) // LAYER_MIN)))
-            for j in range(layers):
-                a, b = face + step * j / layers, face + step * (j + 1) / layers
-                grids = []
-                for k in range(3):
-                    if k == axis:
-                        grids.append(min(a, b) + abs(b - a) * (0.1 + 0.8 * ts))
-                    else:
-                        grids.append(c[k] + (ts * 2 - 1) * new.size[k] / 2 * 0.85)
-                g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)
-                out.append(g @ R.T)
+            grids = []
+            for k in range(3):
+                if k == axis:
+                    grids.append(lo + (hi - lo) * (0.1 + 0.8 * ts))
+                else:
+                    grids.append(c[k] + (ts * 2 - 1) * new.size[k] / 2 * 0.85)
+            g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)
+            out.append(g @ R.T)
     return out
 
 

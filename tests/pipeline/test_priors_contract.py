@@ -550,26 +550,3 @@ def test_the_gate_refuses_an_edit_that_collapses_a_box_in_every_stage():
     # just above the limit it is an ordinary edit
     thin = a.with_(size=np.array([a.size[0], 2 * gate.MIN_SIDE, a.size[2]]))
     assert gate.accept(arr, Edit((thin,), "a thinned"), Evidence(), Context(), "prepare").ok
-
-
-def test_the_gate_judges_a_push_layer_by_layer():
-    """A wall shelf's board grown down to the floor, filmed with the camera tilted up: the
-    space right under the board was in the picture and empty, the wall further down out
-    of it.  The slab as a whole has 4 % of its samples seen through, under the 10 % a
-    volume may have; its top quarter has 68 %.  The gate judges each layer of a push (up
-    to four, at least 5 cm each), as the search does: refused.  A short push (a board
-    thickened by 2 cm) is one layer, judged as before."""
-    board = box("board", (0.0, 0.0, 0.705), (0.3, 0.26, 0.03), object="shelf")
-    wall = box("w", (0.0, 0.2, 1.0), (3.0, 0.1, 2.0))
-    intr = Intrinsics.kinect_v1()
-    T = look_at((0.0, -1.2, 0.8), (0.0, 0.0, 1.1))
-    evidence = Evidence((DepthView(_depth_of_boxes([board, wall], T, intr), intr, T),))
-    arr = Arrangement((board,), (ground(),))
-    slab = board.with_(center=np.array([0.0, 0.0, 0.36]), size=np.array([0.3, 0.26, 0.72]))
-    whole = box_samples(box("added", (0.0, 0.0, 0.345), (0.3 * 0.85, 0.26 * 0.85, 0.69 * 0.8)))
-    assert evidence.free_fraction(whole) <= FREE_FRACTION_MAX  # as a whole: not seen empty
-    v = gate.accept(arr, Edit((slab,), "down to the floor"), evidence, Context(), "complete")
-    assert not v.ok and "seen empty" in v.reason, v.reason
-    assert len(gate.added_samples(board, slab)) == 4
-    thicker = board.with_(center=np.array([0.0, 0.0, 0.715]), size=np.array([0.3, 0.26, 0.05]))
-    assert len(gate.added_samples(board, thicker)) == 1
