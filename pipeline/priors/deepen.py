@@ -88,7 +88,7 @@ height, the monitor on it seen reaching further back).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -161,7 +161,7 @@ def settle_resting(arr: Arrangement, cid: str, dip: float) -> Arrangement | None
             other = cubs[o]
             lift = leaning_lift(cubs[k], other, dip)
             if lift is not None:  # a leaning box's corner on it: the corner rises
-                cubs[o] = other.with_(center=other.center + np.array([0.0, 0.0, lift]))
+                cubs[o] = replace(other, center=other.center + np.array([0.0, 0.0, lift]))
                 continue
             # else the deepened box gives way where it reaches least far, if by little
             face = overlap_face(cubs[k], other)
