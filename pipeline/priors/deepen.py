@@ -16,9 +16,7 @@ end and past it, the space a push adds was seen empty and the push stops there, 
 angle is left to the views (``face_on_deg`` short of a view exactly along the face).
 A panel of an object of several parts (its seen sides within ``thin_fraction`` of each
 other, or its seen face at least ``big_face`` wide, which no leg or post is: a
-desk's or a shelf's side, a sofa's arm, a chair's back; or a board with a face
-``big_face`` tall standing on a part of its object, as a chair's back on its seat,
-where an object's base block stands on the floor) is pushed only where the parts
+desk's or a shelf's side, a sofa's arm, a chair's back) is pushed only where the parts
 joined to it (within ``joined_gap``; not one fixed to its back face) end within
 ``thin_fraction`` of its width behind it (a chair's back seen from the front goes back to
 the seat's rear edge; a monitor's screen not to the foot under its neck): furniture is
@@ -46,10 +44,6 @@ empty" holds for every layer a push adds (each of its ``steps``), not for the ad
 space on average (``layers``): a camera looking over a part's top sees the space
 behind it only from some distance back, and the part ends before that layer, however
 much of the space nearer its face its own shadow hides.  Every push below does the same.
-A push that reaches into a box resting on the part (a book's noisy bottom in the board
-under it) takes the overlap off that box; one leaning on it (a book tilted against its
-neighbour), whose lowest corner dips into it by at most ``lean_dip`` (depth noise),
-rises by the dip.
 
 The parts a part is joined to say how deep it is too: furniture is joined face to face
 (a board's end against its side panel, a seat cushion's end against an arm), so where
@@ -88,7 +82,7 @@ height, the monitor on it seen reaching further back).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -136,14 +130,12 @@ class Params:
     twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
     copies: bool = True  #: copies side by side on one box are as deep as each other
     layers: bool = True  #: no layer a push adds was seen empty (off: the added space as a whole)
-    lean_dip: float = 0.01  #: metres a leaning box's corner may dip into a part pushed under it
 
 
-def settle_resting(arr: Arrangement, cid: str, dip: float) -> Arrangement | None:
+def settle_resting(arr: Arrangement, cid: str) -> Arrangement | None:
     """``arr`` with the overlaps of box ``cid`` cleared where they are a box resting on
-    another (:func:`pipeline.boxops.resting_cut`), a box leaning on it whose corner dips
-    in by at most ``dip`` (:func:`leaning_lift`), or where ``cid`` reaches into the
-    other by at most a tenth of its extent; None when another overlap remains."""
+    another (:func:`pipeline.boxops.resting_cut`) or where ``cid`` reaches into the other
+    by at most a tenth of its extent; None when another overlap remains."""
     for _ in range(4):
         pens = [(a, b) for a, b, _ in find_contacts(arr).penetrations if cid in (a, b)]
         if not pens:
@@ -157,33 +149,14 @@ def settle_resting(arr: Arrangement, cid: str, dip: float) -> Arrangement | None
             if rest is not None:
                 cubs[ia], cubs[ib] = rest
                 continue
-            k, o = (ia, ib) if a == cid else (ib, ia)
-            other = cubs[o]
-            lift = leaning_lift(cubs[k], other, dip)
-            if lift is not None:  # a leaning box's corner on it: the corner rises
-                cubs[o] = replace(other, center=other.center + np.array([0.0, 0.0, lift]))
-                continue
             # else the deepened box gives way where it reaches least far, if by little
+            k, other = (ia, cubs[ib]) if a == cid else (ib, cubs[ia])
             face = overlap_face(cubs[k], other)
             if face is None or face[0] > 0.1 * float(cubs[k].size[face[1]]):
                 return None
             cubs[k] = trimmed(cubs[k], other)
         arr = arr.with_(cuboids=tuple(cubs))
     return None
-
-
-def leaning_lift(c, q, dip: float) -> float | None:
-    """How far box ``q``, leaning (not upright), rises to clear upright box ``c`` when
-    its lowest corner dips into ``c``'s top by at most ``dip`` (depth noise where a
-    leaning book rests on the board under it); None when ``q`` is upright, not above
-    ``c``, or in deeper."""
-    if is_upright(q) or not is_upright(c):
-        return None
-    top = z_range(c)[1]
-    lift = top - extent_along(q, np.array([0.0, 0.0, 1.0]))[0]
-    if float(q.center[2]) <= top or lift <= 0 or lift > dip:
-        return None
-    return lift + 1e-4
 
 
 def stack_reach(arr: Arrangement, c, u: np.ndarray, p: Params) -> float:
@@ -241,18 +214,12 @@ def is_panel(arr: Arrangement, c, axis: int, p: Params) -> bool:
     """Whether ``c``, thin along its horizontal ``axis``, is a panel of furniture: a part
     of an object of several parts whose face across ``axis`` is as wide as half its
     height or ``big_face``, and as tall as half its width (a desk's side, a sofa's arm,
-    a chair's back; not a leg or a post) or ``big_face`` tall standing on a part of its
-    object (``rest_gap``; a wide chair back on its seat, not a sofa's base on the floor)."""
+    a chair's back; not a leg or a post)."""
     width = across(c, axis)
     height = float(c.size[up_axis(c)])
-    if single_part(arr, c) or (width < p.thin_fraction * height and width < p.big_face):
-        return False
-    if height >= p.thin_fraction * width:
-        return True
-    # a board as tall as a big face standing on a part of its object (a chair's back on
-    # its seat), not on the floor as an object's base block does (a sofa's base)
-    below = resting_on(arr, c, p.rest_gap)
-    return height >= p.big_face and below is not None and below.object == c.object
+    return (not single_part(arr, c)
+            and (width >= p.thin_fraction * height or width >= p.big_face)
+            and height >= p.thin_fraction * width)
 
 
 def horizontal_look(c, eye: np.ndarray) -> np.ndarray | None:
@@ -463,22 +430,20 @@ def apply(arr, evidence, p: Params, ctx):
         return
     arr = yield from _face_on(arr, evidence, p)
     arr = yield from pushed_back(arr, evidence, p, joined_pushes(arr, evidence.eye, p),
-                                 "joined side by side to a deeper part of its object",
-                                 p.lean_dip)
+                                 "joined side by side to a deeper part of its object")
     arr = yield from pushed_back(arr, evidence, p, twin_pushes(arr, evidence.eye, p),
-                                 "as deep as a twin board of its object", p.lean_dip)
+                                 "as deep as a twin board of its object")
     if p.copies:
         arr = yield from pushed_back(arr, evidence, p, copy_pushes(arr, evidence.eye, p),
-                                     "as deep as a copy of it beside it", p.lean_dip)
+                                     "as deep as a copy of it beside it")
     yield from pushed_back(arr, evidence, p, carried_pushes(arr, evidence.eye, p),
-                           "under all of what rests on it", p.lean_dip)
+                           "under all of what rests on it")
 
 
-def pushed_back(arr, evidence, p, pushes, why: str, dip: float = 0.0):
+def pushed_back(arr, evidence, p, pushes, why: str):
     """Each box of ``pushes`` (see :func:`joined_pushes`) pushed back as far as it goes
     in ``p.steps`` (any parameters with ``steps``: tried longest first; no view saw the
-    added space empty, nothing entered but what :func:`settle_resting` clears, a leaning
-    box lifted by at most ``dip``)."""
+    added space empty, nothing entered)."""
     from ..extend import Extension
 
     done: set[int] = set()
@@ -497,7 +462,7 @@ def pushed_back(arr, evidence, p, pushes, why: str, dip: float = 0.0):
             length = ends[j]
             if not p.layers and evidence.seen_empty(slab_samples(arr, exts[j])):
                 continue  # the added space as a whole seen empty
-            trial = settle_resting(push_face(arr, k, axis, u, length), c.id, dip)
+            trial = settle_resting(push_face(arr, k, axis, u, length), c.id)
             if trial is None:
                 continue
             v = yield Edit(changed_boxes(trial, arr), f"{why}: pushed back "
@@ -554,7 +519,7 @@ def _face_on(arr, evidence, p: Params):
 
             def deeper(length: float, base=arr, k=k, cid=c.id, axis=axis, u=u
                        ) -> Arrangement | None:
-                return settle_resting(push_face(base, k, axis, u, length), cid, p.lean_dip)
+                return settle_resting(push_face(base, k, axis, u, length), cid)
 
             best, done = None, 0.0
             for j in range(1, p.steps + 1):

@@ -437,50 +437,6 @@ def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     assert ids == []
 
 
-def test_a_board_under_a_leaning_book_goes_back_under_it_and_lifts_its_corner():
-    """A shelf's lower board fitted as its front strip, a thick book leaning 20 degrees on
-    it behind the strip (shelf-107711 of the development seeds): pushed back to its twin
-    above, the board reached 3 mm into the book's lowest corner.  Only an upright box
-    resting on the board could give way (a leaning one has no bottom face), so the push
-    failed and the board stayed a strip; every book on it then went back only to the
-    strip's back edge.  The corner's dip is depth noise where the book rests on the
-    board: the book rises by it and the board goes back.  A corner 3 cm in, beyond depth
-    noise (``lean_dip``, 1 cm), stops the push (a back cushion leaning behind a seat
-    cushion is not lifted onto it: sofa-105005)."""
-    from pipeline.camera import Intrinsics, look_at
-    from pipeline.evidence import DepthView
-    from pipeline.model import rotation_about_axis
-
-    def view(truth):
-        intr = Intrinsics.kinect_v1()
-        T = look_at((2.0, -1.2, 1.3), (0.0, 0.0, 0.5))
-        return [DepthView(_depth_of_boxes(truth, T, intr), intr, T)]
-
-    upper = box("upper", (0.0, 0.0, 0.8), (0.6, 0.3, 0.02), object="shelf")
-    lower = box("lower", (0.0, 0.0, 0.4), (0.6, 0.3, 0.02), object="shelf")
-    strip = box("lower", (0.0, -0.125, 0.4), (0.6, 0.05, 0.02), object="shelf")
-    R = rotation_about_axis([0.0, 1.0, 0.0], np.radians(20))
-    size = np.array([0.12, 0.2, 0.22])  # thick: no face-on rule deepens it
-    half_z = 0.5 * float(np.abs(R[2]) @ size)
-
-    def book(dip):
-        return box("book", (0.15, 0.0, 0.41 - dip + half_z), size, rotation=R, object="book")
-
-    arr = Arrangement((upper, strip, book(0.003)), (ground(),))
-    out, ids = deepen_thin_boxes(arr, view([upper, lower, book(0.0)]))
-    assert sorted(ids) == ["book", "lower"]
-    assert_box(out.cuboid("lower"), lower.size, lower.center)
-    lifted = out.cuboid("book")
-    assert lifted.center[2] - arr.cuboid("book").center[2] == pytest.approx(0.0031, abs=1e-9)
-    np.testing.assert_array_equal(lifted.size, size)
-    assert not find_contacts(out).penetrations
-    assert ("book", "lower") in find_contacts(out).lookup()  # it still rests on the board
-    # a corner 3 cm into the board's space is no noise at the face it rests on
-    arr = Arrangement((upper, strip, book(0.03)), (ground(),))
-    out, ids = deepen_thin_boxes(arr, view([upper, lower, book(0.0)]))
-    assert "lower" not in ids and out.cuboid("lower") is strip
-
-
 def test_a_rail_on_its_edge_is_no_twin_of_the_seat_under_it():
     """A chair's back rail stands on its edge above the seat, as long as the seat is wide
     (chair-3704 of retrieval's fresh seeds): both are upright boxes flatter than half
@@ -1451,39 +1407,6 @@ def test_a_back_rail_seen_face_on_goes_no_deeper_than_the_posts_it_stands_on():
     on_seat = box("rail", (0.0, 0.22, 0.61), (0.5, 0.01, 0.14), object="chair")
     assert deepen.post_reach(Arrangement((seat, on_seat), (ground(),)), on_seat, 1, up,
                              DEEPEN) == float("inf")
-
-
-def test_a_chair_back_standing_on_its_seat_is_a_panel_and_a_base_on_the_floor_no_panel():
-    """A chair's back (56 cm wide, 27 cm tall, 2 cm thick) stands on the rear edge of its
-    seat; filmed from behind and below its top, it shows its back face only, fitted 1 cm
-    deep, and the space over the seat in front of it is hidden.  Wider than twice its
-    height, it was no panel, and the face-on rule pushed it to the chair's depth: a block
-    over the seat (chair-112915 of a held-out pool).  A board as tall as a big face
-    standing on a part of its object is a panel: its depth is what its joints say, and
-    the seat joined along all of it says nothing of it, so it stays as seen.  A sofa's
-    base, as low for its width, stands on the floor: the block of its object, it still
-    goes back (as deep as the sofa's back behind it is)."""
-    seat = box("seat", (0.0, 0.0, 0.39), (0.56, 0.42, 0.04), object="chair")
-    back = box("back", (0.0, 0.2, 0.545), (0.56, 0.02, 0.27), object="chair")
-    views = _view_from((0.9, 2.2, 0.6), [seat, back], (0.0, 0.0, 0.5))
-    sliver = box("back", (0.0, 0.205, 0.545), (0.56, 0.01, 0.27), object="chair")
-    arr = Arrangement((seat, sliver), (ground(),))
-    assert deepen.is_panel(arr, sliver, 1, DEEPEN)
-    out, ids = deepen_thin_boxes(arr, views)
-    assert ids == [] and out.cuboid("back") is sliver
-    # the same board on the floor, the front of a sofa's base with its back behind it
-    base = box("base", (0.0, 0.0, 0.15), (1.6, 0.6, 0.3), object="sofa")
-    rear = box("rear", (0.0, 0.4, 0.4), (1.6, 0.2, 0.8), object="sofa")
-    views = _view_from((0.9, -2.2, 0.9), [base, rear], (0.0, 0.0, 0.3))
-    front = box("base", (0.0, -0.295, 0.15), (1.6, 0.01, 0.3), object="sofa")
-    arr = Arrangement((front, rear), (ground(),))
-    assert not deepen.is_panel(arr, front, 1, DEEPEN)
-    out, ids = deepen_thin_boxes(arr, views)
-    assert ids == ["base"]
-    got = out.cuboid("base")
-    # as deep as its object's other parts span (the back's 20 cm), not left a sliver
-    assert got.size[1] == pytest.approx(0.2, abs=1e-9)
-    assert got.center[1] - got.size[1] / 2 == pytest.approx(-0.3, abs=1e-9)
 
 
 def test_a_screen_seen_face_on_is_not_deepened_to_the_foot_under_its_neck():
