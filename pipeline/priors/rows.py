@@ -11,20 +11,19 @@ linked by pairs overlapping along the support's long axis by ``overlap`` of the 
 while apart across it.  The row (of one box or more) is ordered as the image shows it
 (noise moves a box along its ray, which the image does not see; by the fitted centres
 when the view looks along the row within ``along_deg``), each overlap is split at its
-middle (a member it would leave narrower than ``min_width``, a sliver of noise among
-its neighbours, is left out as it is and the rest split again), and each box's face
-away from the camera goes back to the row's farthest or the board's back edge
-(``to_board``; a book is seen by its spine, and the board under it says how deep the
-shelf is), no box deeper than it is tall, as far as no view saw the added space empty
-and it enters no box outside the row but its board (tried shorter in ``steps``; a
-spine fitted a few millimetres into its board still goes back).  Two members apart
-across the row whose extents along it overlap at all (``overlap``) cannot both reach
-the back edge: they are neighbours, set side by side.  A box outside the row that the
-push back would enter lies beside the member, not behind it, when its extent along the
-row covers one end of the member's and at most ``beside_rel`` of its width (a
-neighbour whose foot the view did not see, or one already as deep as the board): the
-member gives up that strip along the row, as a split does, and goes back; a box
-covering more of it, or its middle, stops the push as before.
+middle (no box left narrower than ``min_width``), and each box's face away from the
+camera goes back to the row's farthest or the board's back edge (``to_board``; a book
+is seen by its spine, and the board under it says how deep the shelf is), no box deeper
+than it is tall, as far as no view saw the added space empty and it enters no box
+outside the row but its board (tried shorter in ``steps``; a spine fitted a few
+millimetres into its board still goes back).  Two members apart across the row whose
+extents along it overlap at all (``overlap``) cannot both reach the back edge: they are
+neighbours, set side by side.  A box outside the row that the push back would enter
+lies beside the member, not behind it, when its extent along the row covers one end of
+the member's and at most ``beside_rel`` of its width (a neighbour whose foot the view
+did not see, or one already as deep as the board): the member gives up that strip along
+the row, as a split does, and goes back; a box covering more of it, or its middle,
+stops the push as before.
 """
 
 from __future__ import annotations
@@ -168,27 +167,6 @@ def row_order(c: Cuboid, s: Cuboid, X: np.ndarray, views, along_deg: float = 20.
     return float((uv[0] - uv[1]) @ along / max(float(np.linalg.norm(along)), 1e-9))
 
 
-def split_row(row: list[int], xr: dict, min_width: float
-              ) -> tuple[list[int], list[float], list[float]]:
-    """``(members, lo, hi)``: the ``row`` (ordered along it, extents ``xr``) with each
-    overlap of neighbours split at its middle; a member the splits would leave narrower
-    than ``min_width`` (a sliver of noise among its neighbours) is left out, narrowest
-    first, and the rest split again."""
-    row = list(row)
-    while row:
-        lo = [xr[k][0] for k in row]
-        hi = [xr[k][1] for k in row]
-        for n in range(len(row) - 1):
-            if hi[n] > lo[n + 1]:
-                mid = 0.5 * (hi[n] + lo[n + 1])
-                hi[n], lo[n + 1] = mid, mid
-        widths = [h - l for l, h in zip(lo, hi, strict=True)]
-        if min(widths) >= min_width:
-            return row, lo, hi
-        del row[int(np.argmin(widths))]
-    return [], [], []
-
-
 def rows_by_support(arr: Arrangement, p: Params, min_members: int = 1):
     """``(support, (X, Y), {index: box turned onto its axes})`` for each upright
     support with at least ``min_members`` standing slabs on it: boxes resting on it
@@ -252,8 +230,13 @@ def apply(arr, evidence, p: Params, ctx):
             rows.setdefault(int(group[n]), []).append(k)
         for row in rows.values():
             row.sort(key=lambda k: row_order(cubs[k], s, X, views, p.along_deg))
-            row, lo, hi = split_row(row, xr, p.min_width)
-            if not row:
+            lo = [xr[k][0] for k in row]
+            hi = [xr[k][1] for k in row]
+            for n in range(len(row) - 1):
+                if hi[n] > lo[n + 1]:
+                    mid = 0.5 * (hi[n] + lo[n + 1])
+                    hi[n], lo[n + 1] = mid, mid
+            if any(h - l < p.min_width for l, h in zip(lo, hi)):
                 continue
             # the face away from the camera goes back to the row's farthest one, or to
             # the board's back edge, no member deeper than it is tall

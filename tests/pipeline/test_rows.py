@@ -6,9 +6,7 @@ from pipeline.camera import Intrinsics, look_at
 from pipeline.contacts import find_contacts
 from pipeline.evidence import DepthView
 from pipeline.model import Arrangement, ObservedBox, box, ground
-from pipeline.priors.rows import Params as RowParams
 from pipeline.priors.rows import row_order as _row_order
-from pipeline.priors.rows import split_row
 from tests.pipeline.priors_util import changed
 from tests.pipeline.test_imagine import _depth_of_boxes
 
@@ -253,33 +251,3 @@ def test_a_neighbour_covering_half_the_book_is_behind_it_and_stops_the_push():
     out, _ = resolve_rows(_beside_scene(0.021))
     np.testing.assert_allclose(_x(out.cuboid("a")), (-0.10, -0.06), atol=1e-12)
     np.testing.assert_allclose(_y(out.cuboid("a")), (-0.15, -0.14), atol=1e-12)
-
-
-def test_a_sliver_among_its_neighbours_is_left_out_and_the_row_goes_back():
-    """Four spines fitted one behind the other along a board; one of them is a 8 mm
-    sliver inside the overlap of its neighbours (a book seen between two others, a few
-    points wide).  Splitting each overlap at its middle leaves the sliver 4 mm wide,
-    less than ``min_width``: the whole row used to be skipped (shelf-107709 of the
-    development seeds, four books left as spines).  The sliver is left out as it is, the
-    others are split and set side by side, and every one of them goes back."""
-    board = box("board", (0.0, 0.0, 0.5), (0.8, 0.3, 0.02), object="shelf")
-    a = _book("a", -0.305, -0.265, -0.14, -0.10)
-    s = _book("s", -0.270, -0.262, -0.09, -0.06)
-    b = _book("b", -0.265, -0.235, -0.14, -0.11)
-    c = _book("c", -0.240, -0.205, -0.09, -0.06)
-    arr = Arrangement((board.with_(observed=ObservedBox(board.center, board.size)), a, s, b,
-                       c), (ground(),))
-    xr = {k: _x(arr.cuboids[k]) for k in (1, 2, 3, 4)}
-    members, lo, hi = split_row([1, 2, 3, 4], xr, RowParams().min_width)
-    assert members == [1, 3, 4]  # the sliver left out
-    np.testing.assert_allclose(lo, (-0.305, -0.265, -0.2375), atol=1e-12)
-    np.testing.assert_allclose(hi, (-0.265, -0.2375, -0.205), atol=1e-12)
-    out, ids = resolve_rows(arr)
-    assert sorted(ids) == ["a", "b", "c"] and out.cuboid("s") is s
-    for k, front in (("b", -0.14), ("c", -0.09)):
-        np.testing.assert_allclose(_y(out.cuboid(k)), (front, min(0.15, front + H)),
-                                   atol=1e-12)
-    # a goes back beside the sliver, giving up the strip along the row it covers
-    np.testing.assert_allclose(_x(out.cuboid("a")), (-0.305, -0.270), atol=1e-12)
-    np.testing.assert_allclose(_y(out.cuboid("a")), (-0.14, -0.14 + H), atol=1e-12)
-    assert not find_contacts(out).penetrations
