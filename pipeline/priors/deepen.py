@@ -61,10 +61,11 @@ whose end meets the back) is not pushed along it: its thickness is what the face
 rule says, not the length of the part beside it.
 
 Furniture repeats its boards: two flat parts of one object (upright, thinner than half
-their length) of the same length (within ``twin_size_rel``), parallel (``twin_cos``) and
-above one another are as deep as each other, so the shallower one is pushed back to the
-deeper one's far face in the same way (a shelf's lower boards half hidden behind its
-books, its top board seen edge-on at eye height).
+their length) of the same length (within ``twin_size_rel``) and thickness (within
+``twin_thickness``: a chair's back rail standing on its edge above the seat is no twin
+of it), parallel (``twin_cos``) and above one another are as deep as each other, so the
+shallower one is pushed back to the deeper one's far face in the same way (a shelf's
+lower boards half hidden behind its books, its top board seen edge-on at eye height).
 
 Things come in copies: boxes resting side by side on one box, parallel (``twin_cos``),
 as tall as each other and as wide across the row (within ``twin_size_rel``), are as
@@ -125,6 +126,7 @@ class Params:
     joined_share: float = 0.5  #: share of the lower part's height the two share
     joined_min: float = 0.03  #: metres one part must stop short of the other
     twin_size_rel: float = 0.1  #: relative agreement of two twin boards' lengths
+    twin_thickness: float = 0.03  #: metres: two twin boards' heights agree within this
     twin_cos: float = 0.996  #: |cos| between twin boards' long axes (5 degrees)
     copies: bool = True  #: copies side by side on one box are as deep as each other
     layers: bool = True  #: no layer a push adds was seen empty (off: the added space as a whole)
@@ -338,6 +340,8 @@ def twin_pushes(arr: Arrangement, eye: np.ndarray, p: Params):
             if q is c or q.object != c.object:
                 continue
             lc, lq = float(c.size[long]), float(q.size[qlong])
+            if abs(float(c.size[up_axis(c)]) - float(q.size[up_axis(q)])) > p.twin_thickness:
+                continue  # not as thick: a rail on its edge is no twin of a seat
             if (not alike(lc, lq, p.twin_size_rel)
                     or abs(float(c.rotation[:, long] @ q.rotation[:, qlong])) < p.twin_cos):
                 continue

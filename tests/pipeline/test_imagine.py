@@ -437,6 +437,30 @@ def test_a_board_half_hidden_is_as_deep_as_its_twin_above_it():
     assert ids == []
 
 
+def test_a_rail_on_its_edge_is_no_twin_of_the_seat_under_it():
+    """A chair's back rail stands on its edge above the seat, as long as the seat is wide
+    (chair-3704 of retrieval's fresh seeds): both are upright boxes flatter than half
+    their length, the same length and parallel, one above the other.  Seen from behind,
+    the space in front of the rail is hidden, and as the seat's twin the rail was pushed
+    33 cm forward into a block floating over the seat (retrieved as a table).  Repeated
+    boards are as thick as each other; the rail (14 cm tall) is not the seat's twin
+    (4 cm), while a board as thick as the seat still is."""
+    seat = box("seat", (0.0, 0.0, 0.52), (0.52, 0.34, 0.04), object="chair")
+    rail = box("rail", (0.0, 0.16, 0.79), (0.52, 0.02, 0.14), object="chair")
+    eye = (2.0, 1.2, 1.0)
+    views = _view_from(eye, [seat, rail], (0.0, 0.0, 0.6))
+    arr = Arrangement((seat, rail), (ground(),))
+    assert deepen.twin_pushes(arr, np.array(eye), DEEPEN) == []
+    out, ids = deepen_thin_boxes(arr, views)
+    assert ids == [] and out.cuboid("rail") is rail
+    # a board as thick as the seat, seen as the same 2 cm strip, is its twin
+    board = box("rail", (0.0, 0.16, 0.79), (0.52, 0.02, 0.04), object="chair")
+    arr = Arrangement((seat, board), (ground(),))
+    pushes = deepen.twin_pushes(arr, np.array(eye), DEEPEN)
+    assert [(k, axis) for k, axis, _u, _l in pushes] == [(1, 1)]
+    assert pushes[0][3] == pytest.approx(0.32)
+
+
 def test_a_cushion_half_hidden_is_as_deep_as_its_copy_beside_it():
     """Two cushions of one size side by side on a seat, one fitted whole, the other as
     its front half (not thin enough for the face-on rule, of another object than the
