@@ -18,7 +18,7 @@ Without a depth view (a bare point cloud) nothing is seen empty and nothing is i
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -83,6 +83,14 @@ def slab_samples(arr, ext, n: int = 5, start: float = 0.0) -> np.ndarray:
             grids.append((ts * 2 - 1) * half[k] * 0.85)
     g = np.stack(np.meshgrid(*grids, indexing="ij"), axis=-1).reshape(-1, 3)
     return c.center + g @ c.rotation.T
+
+
+def slab_layers(arr, ext, ends):
+    """The samples (:func:`slab_samples`) of each layer of the slab that extension
+    ``ext`` adds, between consecutive distances ``ends`` from the face (the first 0),
+    nearest first; lazily, so a caller can stop at the first layer seen empty."""
+    for j in range(1, len(ends)):
+        yield slab_samples(arr, replace(ext, length=ends[j]), start=ends[j - 1])
 
 
 def visible_free_fraction(points: np.ndarray, views, margin: float = 0.0) -> float:
@@ -274,6 +282,6 @@ class Evidence:
         return self._memo["cloud"]
 
 
-__all__ = ["Evidence", "DepthView", "depth_noise", "slab_samples", "visible_free_fraction",
+__all__ = ["Evidence", "DepthView", "depth_noise", "slab_samples", "slab_layers", "visible_free_fraction",
            "visible_free_mask", "visible_masks", "seen_in_front", "observed_points",
            "FREE_FRACTION_MAX"]

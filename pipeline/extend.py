@@ -38,6 +38,7 @@ from .evidence import (
     DepthView,
     depth_noise,
     seen_in_front,
+    slab_layers,
     slab_samples,
     visible_free_fraction,
     visible_free_mask,
@@ -512,11 +513,8 @@ def layers_unseen(arr: Arrangement, x: Extension, views: list[DepthView], margin
     the rest down to the floor is hidden by the board)."""
     n = int(min(LAYERS, max(1, x.length // LAYER_MIN)))
     ends = [x.length * j / n for j in range(n + 1)]
-    for j in range(1, n + 1):
-        layer = slab_samples(arr, Extension(x.box, x.axis, x.side, ends[j]), start=ends[j - 1])
-        if visible_free_fraction(layer, views, margin) > FREE_FRACTION_MAX:
-            return False
-    return True
+    return all(visible_free_fraction(layer, views, margin) <= FREE_FRACTION_MAX
+               for layer in slab_layers(arr, x, ends))
 
 
 def prune_by_visibility(arr: Arrangement, edges: list[Edge], views: list[DepthView],

@@ -115,16 +115,11 @@ def _search_again(arr: Arrangement, edges, n_falling: int, t0: float,
     return (again, fall) if len(fall) < n_falling else None
 
 
+@workclock.fresh()  # a work clock of its own, started at zero
 def imagine(arr: Arrangement, evidence: Evidence | None = None,
             config: ImagineConfig | None = None, *, progress=None) -> ImagineResult:
     """Extend the initial cuboids of ``arr`` into a stable arrangement (module docstring),
     on a work clock of its own that starts at zero (:func:`pipeline.workclock.fresh`)."""
-    with workclock.fresh():
-        return _imagine(arr, evidence, config, progress=progress)
-
-
-def _imagine(arr: Arrangement, evidence: Evidence | None, config: ImagineConfig | None, *,
-             progress=None) -> ImagineResult:
     config = config or ImagineConfig()
     evidence = evidence if evidence is not None else Evidence()
     budget, mu, threshold = config.budget, config.mu, config.threshold

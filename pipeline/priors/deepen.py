@@ -107,7 +107,7 @@ from ..boxops import (
     z_range,
 )
 from ..contacts import find_contacts
-from ..evidence import slab_samples
+from ..evidence import slab_layers, slab_samples
 from ..model import Arrangement, is_support_id
 from .base import Edit, Prior, principle_of
 
@@ -456,8 +456,8 @@ def pushed_back(arr, evidence, p, pushes, why: str):
         exts = [Extension(k, axis, side, e) for e in ends]
         reach = p.steps
         if p.layers:  # as far as the first layer a view saw empty
-            reach = next((j - 1 for j in range(1, p.steps + 1) if evidence.seen_empty(
-                slab_samples(arr, exts[j], start=ends[j - 1]))), p.steps)
+            reach = next((j for j, layer in enumerate(slab_layers(arr, exts[-1], ends))
+                          if evidence.seen_empty(layer)), p.steps)
         for j in range(reach, 0, -1):
             length = ends[j]
             if not p.layers and evidence.seen_empty(slab_samples(arr, exts[j])):
